@@ -1,0 +1,1 @@
+"""ROS glue for sparse_nav: nodes, message conversions. Everything else stays ROS-free."""

@@ -1,0 +1,184 @@
+"""demo: the seed 000 initial scan on the simulator, recorded, then summarised in output_dir.
+
+Writes report.json, cloud.csv (the SLAM map points in the wrapper's frame, as users save them),
+summary.png (top view: SLAM points, true walls, trajectories) and run.bag, then exits so that a
+launch file with required="true" ends.
+"""
+import json
+import os
+import threading
+
+import numpy as np
+import rosbag
+import rospy
+import tf2_ros
+from geometry_msgs.msg import PoseStamped, Twist
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import Float64, Int32, String
+from tf2_msgs.msg import TFMessage
+
+from sparse_nav.msg import SlamScale, SlamState
+from sparse_nav.pointfiles import write_points_csv
+from sparse_nav.ros.conversions import cloud_to_points, transform_to_matrix
+from sparse_nav.scanning import initial_scan, to_tello_commands, to_velocity_segments
+from sparse_nav.sim import load_world
+from sparse_nav.summary import plot_summary
+
+RECORDED = [
+    ("orb_slam3/camera_pose", PoseStamped), ("orb_slam3/tracked_points", PointCloud2),
+    ("orb_slam3/all_points", PointCloud2), ("orb_slam3/tracking_state", Int32),
+    ("slam/state", SlamState), ("slam/scale", SlamScale), ("slam/points", PointCloud2),
+    ("ground_truth/odom", Odometry), ("ground_truth/slam_scale", Float64), ("odom", Odometry),
+    ("cmd_vel", Twist), ("tello/command", String), ("tello/response", String),
+    ("/tf", TFMessage), ("/tf_static", TFMessage),
+]
+
+
+class DemoNode:
+    """Drives the scripted scan and records what the stack publishes."""
+
+    def __init__(self):
+        self.world_name = rospy.get_param("~world", "one_room")
+        self.robot = rospy.get_param("~robot", "drone")
+        self.output_dir = os.path.abspath(rospy.get_param("~output_dir", "demo_output"))
+        self.response_timeout_s = float(rospy.get_param("~response_timeout_s", 30.0))
+        os.makedirs(self.output_dir, exist_ok=True)
+        self.lock = threading.Lock()
+        self.bag = rosbag.Bag(os.path.join(self.output_dir, "run.bag"), "w")
+        self.latest = {}
+        self.responses = []
+        self.states = []
+        self.true_path, self.estimated_path = [], []
+        self.tf_buffer = tf2_ros.Buffer(rospy.Duration(30.0))
+        self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+        for topic, msg_type in RECORDED:
+            rospy.Subscriber(topic, msg_type, self._record, callback_args=topic, queue_size=50)
+        self.cmd_pub = rospy.Publisher("cmd_vel", Twist, queue_size=10)
+        self.tello_pub = rospy.Publisher("tello/command", String, queue_size=10)
+
+    def _record(self, msg, topic):
+        with self.lock:
+            if self.bag is not None:
+                self.bag.write(topic, msg, rospy.Time.now() if topic.startswith("/tf") else None)
+            self.latest[topic] = msg
+            if topic == "tello/response":
+                self.responses.append(msg.data)
+            elif topic == "slam/state":
+                self.states.append(msg)
+            elif topic == "ground_truth/odom":
+                p = msg.pose.pose.position
+                self.true_path.append((p.x, p.y))
+
+    def _wait_for_clock(self):
+        while not rospy.is_shutdown() and rospy.Time.now().is_zero():
+            rospy.sleep(0.05)
+
+    def _sample_estimate(self):
+        try:
+            tf = self.tf_buffer.lookup_transform("sim_world", "base_link", rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                tf2_ros.ExtrapolationException):
+            return
+        t = tf.transform.translation
+        self.estimated_path.append((t.x, t.y))
+
+    def _tello(self, command):
+        with self.lock:
+            before = len(self.responses)
+        self.tello_pub.publish(String(data=command))
+        deadline = rospy.Time.now() + rospy.Duration(self.response_timeout_s)
+        while not rospy.is_shutdown() and rospy.Time.now() < deadline:
+            with self.lock:
+                if len(self.responses) > before:
+                    return self.responses[before]
+            self._sample_estimate()
+            rospy.sleep(0.1)
+        return "timeout"
+
+    def run_scan(self):
+        self._wait_for_clock()
+        rospy.sleep(1.0)  # let every node subscribe before the first motion
+        steps = initial_scan()
+        if self.robot == "drone":
+            for command in ["command", "takeoff"] + to_tello_commands(steps):
+                answer = self._tello(command)
+                rospy.loginfo("demo: %s -> %s", command, answer)
+            self._tello("land")
+        else:
+            rate = rospy.Rate(20)
+            for v, w, duration in to_velocity_segments(steps):
+                end = rospy.Time.now() + rospy.Duration(duration)
+                while not rospy.is_shutdown() and rospy.Time.now() < end:
+                    cmd = Twist()
+                    cmd.linear.x, cmd.angular.z = v, w
+                    self.cmd_pub.publish(cmd)
+                    self._sample_estimate()
+                    rate.sleep()
+            self.cmd_pub.publish(Twist())
+        rospy.sleep(1.0)
+
+    def write_outputs(self):
+        with self.lock:
+            bag, self.bag = self.bag, None
+            latest = dict(self.latest)
+            states = list(self.states)
+        bag.close()
+        raw = latest.get("orb_slam3/all_points")
+        raw_points = cloud_to_points(raw) if raw is not None else np.empty((0, 3))
+        write_points_csv(os.path.join(self.output_dir, "cloud.csv"), raw_points)
+
+        world = load_world(self.world_name)
+        map_points = np.empty((0, 3))
+        if "slam/points" in latest:
+            map_points = cloud_to_points(latest["slam/points"])
+            try:
+                tf = self.tf_buffer.lookup_transform("sim_world", "map", rospy.Time(0))
+                t = transform_to_matrix(tf.transform)
+                map_points = map_points @ t[:3, :3].T + t[:3, 3]
+            except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                    tf2_ros.ExtrapolationException) as exc:
+                rospy.logwarn("demo: no map -> sim_world alignment, points not drawn: %s", exc)
+                map_points = np.empty((0, 3))
+        plot_summary(os.path.join(self.output_dir, "summary.png"), world, map_points,
+                     self.true_path, self.estimated_path,
+                     title=f"{world.name}, {self.robot}: {len(raw_points)} SLAM points")
+
+        scale = latest.get("slam/scale")
+        true_scale = latest.get("ground_truth/slam_scale")
+        estimated = scale.metres_per_unit if scale else None
+        truth = true_scale.data if true_scale else None
+        report = {
+            "world": world.name,
+            "robot": self.robot,
+            "sim_time_s": round(rospy.Time.now().to_sec(), 2),
+            "slam_points": int(len(raw_points)),
+            "tracking_losses": sum(1 for s in states if s.state == SlamState.LOST),
+            "slam_maps": len({s.map_index for s in states}),
+            "final_slam_state": states[-1].reason if states else "no state received",
+            "scale": {
+                "estimated_metres_per_unit": estimated,
+                "confidence": scale.confidence if scale else 0.0,
+                "source": scale.source if scale else None,
+                "samples": scale.n_samples if scale else 0,
+                "true_metres_per_unit": truth,
+                "relative_error": (abs(estimated - truth) / truth) if estimated and truth else None,
+            },
+            "drone_responses": {"ok": self.responses.count("ok"),
+                                "error": sum(1 for r in self.responses if r.startswith("error"))},
+        }
+        path = os.path.join(self.output_dir, "report.json")
+        with open(path + ".tmp", "w") as f:
+            json.dump(report, f, indent=1)
+        os.replace(path + ".tmp", path)
+        rospy.loginfo("demo: wrote %s", self.output_dir)
+
+
+def main():
+    rospy.init_node("demo")
+    node = DemoNode()
+    try:
+        node.run_scan()
+    except rospy.ROSInterruptException:
+        return
+    node.write_outputs()

@@ -1,0 +1,293 @@
+"""slam_bridge: REP-105 TF, SLAM health and metric scale from an ORB-SLAM3 wrapper's topics."""
+import numpy as np
+import rospy
+import tf2_ros
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import Int32, String
+
+from sparse_nav.msg import SlamScale, SlamState
+from sparse_nav.ros.conversions import (CloudError, cloud_to_points, matrix_to_transform_stamped,
+                                        points_to_cloud, pose_to_matrix, transform_to_matrix)
+from sparse_nav.slam_bridge import (LOST, NEW_MAP, OK, STATE_NAMES, BridgeConfig, DroneMoveScale,
+                                    MapAnchors, ScaleEstimator, StateTracker)
+from sparse_nav.transforms import invert
+
+
+def _config_from_params():
+    cfg = BridgeConfig()
+    for field in ("pose_timeout_s", "min_tracked_points", "relocalise_tolerance_m",
+                  "jump_threshold_m"):
+        setattr(cfg, field, type(getattr(cfg, field))(rospy.get_param("~" + field,
+                                                                       getattr(cfg, field))))
+    cfg.validate()
+    return cfg
+
+
+class SlamBridgeNode:
+    """Glue between the wrapper's topics and the ROS-free bridge core."""
+
+    def __init__(self):
+        self.cfg = _config_from_params()
+        self.map_frame = rospy.get_param("~map_frame", "map")
+        self.odom_frame = rospy.get_param("~odom_frame", "odom")
+        self.base_frame = rospy.get_param("~base_frame", "base_link")
+        self.camera_frame = rospy.get_param("~camera_frame", "camera_optical")
+        self.publish_odom_tf = rospy.get_param("~publish_odom_tf", True)
+        self.scale_source = rospy.get_param("~scale_source", "parameter")
+        if self.scale_source not in ("parameter", "odometry", "drone_commands"):
+            raise ValueError(f"~scale_source must be parameter, odometry or drone_commands, "
+                             f"got {self.scale_source!r}")
+        metres_per_unit = float(rospy.get_param("~metres_per_unit", 1.0))
+        if not metres_per_unit > 0:
+            raise ValueError(f"~metres_per_unit must be > 0, got {metres_per_unit}")
+        self.rate_hz = float(rospy.get_param("~rate_hz", 20.0))
+
+        self.tf_buffer = tf2_ros.Buffer(rospy.Duration(10.0))
+        self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+        self.tf_broadcaster = tf2_ros.TransformBroadcaster()
+        self.t_base_cam = self._camera_mount()
+
+        self.tracker = StateTracker(self.cfg)
+        self.anchors = MapAnchors(self.cfg, self.t_base_cam)
+        self.scale = ScaleEstimator(prior_metres_per_unit=metres_per_unit)
+        self.drone_moves = DroneMoveScale()
+        self.t_map_base = None
+        self.t_map_odom = np.eye(4)
+        self.last_slam_position = None
+        self.last_odom_position = None
+        self.state, self.reason = None, ""
+        self.new_map_pending = False
+        self.n_poses = 0
+        self.n_points = 0
+        self.points_before_loss = 0
+        self.bad_inputs = 0
+
+        self.state_pub = rospy.Publisher("slam/state", SlamState, queue_size=10, latch=True)
+        self.scale_pub = rospy.Publisher("slam/scale", SlamScale, queue_size=10, latch=True)
+        self.points_pub = rospy.Publisher("slam/points", PointCloud2, queue_size=2)
+        self.diag_pub = rospy.Publisher("/diagnostics", DiagnosticArray, queue_size=10)
+
+        rospy.Subscriber("orb_slam3/camera_pose", PoseStamped, self._on_pose, queue_size=20)
+        rospy.Subscriber("orb_slam3/tracked_points", PointCloud2, self._on_tracked, queue_size=5)
+        rospy.Subscriber("orb_slam3/all_points", PointCloud2, self._on_all_points, queue_size=2)
+        rospy.Subscriber("orb_slam3/tracking_state", Int32, self._on_wrapper_state, queue_size=20)
+        if self.scale_source == "odometry":
+            rospy.Subscriber("odom", Odometry, self._on_odom, queue_size=50)
+        if self.scale_source == "drone_commands":
+            rospy.Subscriber("tello/command", String, self._on_drone_command, queue_size=20)
+            rospy.Subscriber("tello/response", String, self._on_drone_response, queue_size=20)
+
+        self._publish_scale()
+        rospy.Timer(rospy.Duration(1.0 / self.rate_hz), self._on_timer)
+        rospy.Timer(rospy.Duration(1.0), self._on_diagnostics)
+
+    def _camera_mount(self):
+        """T_base_cameraOptical from TF (static publisher in the launch file), waiting for it."""
+        deadline = rospy.Time.now() + rospy.Duration(30.0)
+        while not rospy.is_shutdown():
+            try:
+                tf = self.tf_buffer.lookup_transform(self.base_frame, self.camera_frame,
+                                                     rospy.Time(0), rospy.Duration(1.0))
+                return transform_to_matrix(tf.transform)
+            except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                    tf2_ros.ExtrapolationException):
+                if rospy.Time.now() > deadline:
+                    raise RuntimeError(f"no TF {self.base_frame} -> {self.camera_frame}: "
+                                       "publish the camera mounting")
+        raise rospy.ROSInterruptException("shutdown while waiting for the camera mounting")
+
+    def _bad_input(self, what):
+        self.bad_inputs += 1
+        rospy.logerr_throttle(5.0, f"slam_bridge: ignoring {what}")
+
+    def _on_wrapper_state(self, msg):
+        if self.tracker.on_wrapper_state(msg.data):
+            self.anchors.expect_new_map()
+
+    def _on_tracked(self, msg):
+        self.tracker.on_tracked_points(msg.width * msg.height)
+
+    def _on_pose(self, msg):
+        try:
+            t_slam_cam = pose_to_matrix(msg.pose)
+        except ValueError as exc:
+            self._bad_input(f"camera pose: {exc}")
+            return
+        self.tracker.on_pose(msg.header.stamp.to_sec())
+        state, _ = self.tracker.evaluate(rospy.Time.now().to_sec())
+        if state != OK:
+            return
+        self.n_poses += 1
+        metres_per_unit, _, _ = self.scale.estimate()
+        t_map_base, event = self.anchors.update(t_slam_cam, metres_per_unit)
+        if event == "new_map":
+            self.scale.reset()
+            self.drone_moves.invalidate()
+            self.last_slam_position = None
+            self.new_map_pending = True
+            rospy.logwarn("slam_bridge: SLAM started a new map (index %d)",
+                          self.anchors.current.index)
+        elif event == "switched":
+            self.scale.reset()
+            self.drone_moves.invalidate()
+            self.last_slam_position = None
+            self.new_map_pending = True
+            rospy.logwarn("slam_bridge: SLAM merged back into map %d", self.anchors.current.index)
+        self.t_map_base = t_map_base
+        self.last_slam_position = t_slam_cam[:3, 3].copy()
+        if not self.publish_odom_tf:
+            self._update_map_odom(msg.header.stamp)
+
+    def _update_map_odom(self, stamp):
+        try:
+            tf = self.tf_buffer.lookup_transform(self.odom_frame, self.base_frame, stamp,
+                                                 rospy.Duration(0.1))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                tf2_ros.ExtrapolationException) as exc:
+            rospy.logwarn_throttle(5.0, f"slam_bridge: no {self.odom_frame} -> "
+                                        f"{self.base_frame} at the pose time: {exc}")
+            return
+        self.t_map_odom = self.t_map_base @ invert(transform_to_matrix(tf.transform))
+
+    def _on_all_points(self, msg):
+        try:
+            points = cloud_to_points(msg)
+        except CloudError as exc:
+            self._bad_input(f"orb_slam3/all_points: {exc}")
+            return
+        points = points[np.all(np.isfinite(points), axis=1)]
+        anchor = self.anchors.current
+        if self.state != OK:
+            # ORB-SLAM3 publishes only the active map: a collapsed count means a new map.
+            if self.points_before_loss and len(points) < 0.5 * self.points_before_loss:
+                self.anchors.expect_new_map()
+                self.points_before_loss = 0
+            return
+        if anchor is None:
+            return
+        self.points_before_loss = len(points)
+        metric = points * anchor.metres_per_unit
+        metric = metric @ anchor.t_map_slam[:3, :3].T + anchor.t_map_slam[:3, 3]
+        self.n_points = len(metric)
+        header = msg.header
+        header.frame_id = self.map_frame
+        self.points_pub.publish(points_to_cloud(metric, header))
+
+    def _on_odom(self, msg):
+        p = msg.pose.pose.position
+        odom_position = np.array([p.x, p.y, p.z])
+        if self.state != OK or self.last_slam_position is None:
+            self.last_odom_position = None
+            return
+        if self.last_odom_position is None:
+            self.last_odom_position = odom_position
+            self._odom_slam_start = self.last_slam_position.copy()
+            return
+        metric = float(np.linalg.norm(odom_position - self.last_odom_position))
+        if metric >= 0.3:
+            slam = float(np.linalg.norm(self.last_slam_position - self._odom_slam_start))
+            if self.scale.add(slam, metric):
+                self._apply_scale()
+            self.last_odom_position = odom_position
+            self._odom_slam_start = self.last_slam_position.copy()
+
+    def _current_slam_position(self):
+        return self.last_slam_position if self.state == OK else None
+
+    def _on_drone_command(self, msg):
+        self.drone_moves.on_command(msg.data, self._current_slam_position())
+
+    def _on_drone_response(self, msg):
+        sample = self.drone_moves.on_response(msg.data, self._current_slam_position())
+        if sample is not None and self.scale.add(*sample):
+            self._apply_scale()
+
+    def _apply_scale(self):
+        self.anchors.set_scale(self.scale.estimate()[0])
+        self._publish_scale()
+
+    def _publish_scale(self):
+        value, confidence, n = self.scale.estimate()
+        msg = SlamScale()
+        msg.header.stamp = rospy.Time.now()
+        msg.header.frame_id = self.map_frame
+        msg.metres_per_unit = value
+        msg.confidence = confidence
+        msg.n_samples = n
+        msg.source = self.scale_source if n else "parameter"
+        self.scale_pub.publish(msg)
+
+    def _on_timer(self, _event):
+        now = rospy.Time.now()
+        state, reason = self.tracker.evaluate(now.to_sec())
+        if state != OK and self.state == OK:
+            self.anchors.tracking_lost()
+            self.drone_moves.invalidate()
+            self.last_odom_position = None
+        published = state
+        if state == OK and self.new_map_pending:
+            published, reason = NEW_MAP, f"SLAM map {self.anchors.current.index} is now active"
+            self.new_map_pending = False
+        if published != self.state or published == NEW_MAP:
+            self._publish_state(published, reason, now)
+        self.state = OK if published == NEW_MAP else state
+        self.reason = reason
+        self._publish_tf(now)
+
+    def _publish_state(self, state, reason, stamp):
+        msg = SlamState()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self.map_frame
+        msg.state = state
+        msg.map_index = self.anchors.current.index if self.anchors.current else 0
+        msg.n_tracked_points = self.tracker.n_tracked
+        msg.source = self.tracker.source
+        msg.reason = reason
+        self.state_pub.publish(msg)
+        log = rospy.logwarn if state in (LOST, NEW_MAP) else rospy.loginfo
+        log("slam_bridge: %s (%s)", STATE_NAMES[state], reason)
+
+    def _publish_tf(self, stamp):
+        if self.t_map_base is None:
+            return
+        transforms = []
+        if self.publish_odom_tf:
+            transforms.append(matrix_to_transform_stamped(np.eye(4), stamp, self.map_frame,
+                                                          self.odom_frame))
+            transforms.append(matrix_to_transform_stamped(self.t_map_base, stamp,
+                                                          self.odom_frame, self.base_frame))
+        else:
+            transforms.append(matrix_to_transform_stamped(self.t_map_odom, stamp, self.map_frame,
+                                                          self.odom_frame))
+        self.tf_broadcaster.sendTransform(transforms)
+
+    def _on_diagnostics(self, _event):
+        value, confidence, n = self.scale.estimate()
+        status = DiagnosticStatus()
+        status.name = "slam_bridge"
+        status.hardware_id = "slam"
+        status.level = DiagnosticStatus.OK if self.state == OK else DiagnosticStatus.WARN
+        status.message = f"{STATE_NAMES.get(self.state, 'starting')}: {self.reason}"
+        status.values = [KeyValue(k, str(v)) for k, v in (
+            ("tracking_source", self.tracker.source), ("tracked_points", self.tracker.n_tracked),
+            ("map_points", self.n_points), ("poses_used", self.n_poses),
+            ("maps", len(self.anchors.anchors)), ("metres_per_unit", f"{value:.4f}"),
+            ("scale_confidence", f"{confidence:.2f}"), ("scale_samples", n),
+            ("bad_inputs", self.bad_inputs))]
+        msg = DiagnosticArray()
+        msg.header.stamp = rospy.Time.now()
+        msg.status = [status]
+        self.diag_pub.publish(msg)
+
+
+def main():
+    rospy.init_node("slam_bridge")
+    try:
+        SlamBridgeNode()
+    except (ValueError, RuntimeError) as exc:
+        rospy.logfatal(f"slam_bridge: {exc}")
+        raise SystemExit(1)
+    rospy.spin()

@@ -1,0 +1,106 @@
+"""Scan motions of seed 000 as robot-independent steps, and their Tello and cmd_vel forms (ROS-free).
+
+The initial scan turns a full circle in place, but never by rotation alone: every iteration goes a
+bit back (wider view), to the right while looking right and back, to the left while looking left and
+back, forward to where it started, then turns clockwise. The sideways moves give monocular SLAM the
+baseline it needs to initialise and to keep triangulating while the view turns.
+"""
+import dataclasses
+import math
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """One motion in the robot frame: translation (forward_m, left_m) then a turn (ccw_deg)."""
+
+    forward_m: float = 0.0
+    left_m: float = 0.0
+    ccw_deg: float = 0.0
+
+
+@dataclasses.dataclass
+class InitialScanConfig:
+    """Sizes of the seed 000 initial scan; defaults written once here."""
+
+    back_m: float = 0.3        # a: go back for a wider view
+    side_m: float = 0.3        # b, c: sideways move
+    look_deg: float = 20.0     # b, c: look right/left while moving sideways
+    turn_deg: float = 30.0     # e: clockwise turn per iteration
+    full_turn_deg: float = 360.0
+
+    def validate(self):
+        if not 0 < self.turn_deg <= 180:
+            raise ValueError(f"turn_deg must be in (0, 180], got {self.turn_deg}")
+        for name in ("back_m", "side_m", "look_deg", "full_turn_deg"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0")
+
+
+def initial_scan(config=None):
+    """The seed 000 initial scan as a list of Steps (a, b, c, d, e per iteration until a full turn)."""
+    cfg = config or InitialScanConfig()
+    cfg.validate()
+    steps = []
+    turned = 0.0
+    while turned < cfg.full_turn_deg - 1e-9:
+        turn = min(cfg.turn_deg, cfg.full_turn_deg - turned)
+        steps += [
+            Step(forward_m=-cfg.back_m),                       # a
+            Step(left_m=-cfg.side_m, ccw_deg=-cfg.look_deg),   # b: right and look right (cw)
+            Step(left_m=cfg.side_m, ccw_deg=cfg.look_deg),     #    reverse: ccw and go left
+            Step(left_m=cfg.side_m, ccw_deg=cfg.look_deg),     # c: left and look left (ccw)
+            Step(left_m=-cfg.side_m, ccw_deg=-cfg.look_deg),   #    reverse: cw and go right
+            Step(forward_m=cfg.back_m),                        # d: back to the start
+            Step(ccw_deg=-turn),                               # e: look a bit to the right
+        ]
+        turned += turn
+    return steps
+
+
+def _tello_move(value_cm, positive, negative):
+    return f"{positive if value_cm > 0 else negative} {abs(value_cm)}"
+
+
+def to_tello_commands(steps, min_move_cm=20, max_move_cm=500):
+    """Tello SDK commands for Steps; moves are rounded to whole cm within the Tello's limits."""
+    commands = []
+    for step in steps:
+        for value_m, pos, neg in ((step.forward_m, "forward", "back"),
+                                  (step.left_m, "left", "right")):
+            cm = int(round(value_m * 100))
+            if cm == 0:
+                continue
+            if not min_move_cm <= abs(cm) <= max_move_cm:
+                raise ValueError(f"move of {cm} cm is outside the Tello's {min_move_cm}-"
+                                 f"{max_move_cm} cm")
+            commands.append(_tello_move(cm, pos, neg))
+        deg = int(round(step.ccw_deg))
+        if deg:
+            commands.append(f"{'ccw' if deg > 0 else 'cw'} {abs(deg)}")
+    return commands
+
+
+def to_velocity_segments(steps, speed_m_s=0.2, turn_rate_rad_s=0.5):
+    """(linear_m_s, angular_rad_s, duration_s) segments for a unicycle executing Steps.
+
+    A unicycle cannot move sideways: a sideways step becomes an arc that ends displaced to that
+    side with the step's heading change, so translation and rotation stay mixed as the seed wants.
+    """
+    segments = []
+    for step in steps:
+        if step.forward_m:
+            segments.append((math.copysign(speed_m_s, step.forward_m), 0.0,
+                             abs(step.forward_m) / speed_m_s))
+        if step.left_m:
+            # Arc through the sideways distance: drive backwards if the turn and side disagree.
+            angle = math.radians(step.ccw_deg) or math.copysign(0.3, step.left_m)
+            length = abs(step.left_m) / max(abs(math.sin(angle)), 0.3)
+            duration = length / speed_m_s
+            direction = 1.0 if (angle > 0) == (step.left_m > 0) else -1.0
+            segments.append((direction * speed_m_s, angle / duration, duration))
+        elif step.ccw_deg:
+            angle = math.radians(step.ccw_deg)
+            duration = abs(angle) / turn_rate_rad_s
+            # A little forward motion during a turn keeps parallax for monocular tracking.
+            segments.append((0.05, angle / duration, duration))
+    return segments

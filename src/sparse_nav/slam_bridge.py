@@ -1,0 +1,260 @@
+"""ROS-free core of slam_bridge: SLAM health, map anchoring in REP-105 frames, metric scale.
+
+The monocular SLAM world is the first camera's optical frame, in SLAM units. The bridge anchors
+each SLAM map in a z-up ``map`` frame: the first map so that ``base_link`` is at the origin when
+tracking first succeeds, every later map so that the robot continues from its last known pose.
+When SLAM merges a map back into an earlier one, the pose jumps into that map's frame and the
+earlier anchor is picked up again because it explains the pose best.
+"""
+import dataclasses
+import re
+
+import numpy as np
+
+from sparse_nav.transforms import invert, planar, scaled, yaw_of
+
+NOT_INITIALIZED, OK, LOST, NEW_MAP = 0, 1, 2, 3
+STATE_NAMES = {NOT_INITIALIZED: "NOT_INITIALIZED", OK: "OK", LOST: "LOST", NEW_MAP: "NEW_MAP"}
+
+# ORB-SLAM3 Tracking::eTrackingState (OK_KLT exists in some forks).
+ORB_SYSTEM_NOT_READY, ORB_NO_IMAGES_YET, ORB_NOT_INITIALIZED = -1, 0, 1
+ORB_OK, ORB_RECENTLY_LOST, ORB_LOST, ORB_OK_KLT = 2, 3, 4, 5
+
+
+@dataclasses.dataclass
+class BridgeConfig:
+    """Parameters of the bridge; defaults are written here once."""
+
+    pose_timeout_s: float = 0.5          # no pose for this long: tracking is lost
+    min_tracked_points: int = 15         # fewer tracked map points: tracking is lost
+    relocalise_tolerance_m: float = 2.0  # an earlier map anchor is reused if it puts the robot this close
+    jump_threshold_m: float = 0.5        # a pose step larger than this (metres) is a map switch
+    max_pose_age_for_scale_s: float = 0.3
+
+    def validate(self):
+        for name in ("pose_timeout_s", "relocalise_tolerance_m", "jump_threshold_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.min_tracked_points < 0:
+            raise ValueError("min_tracked_points must be >= 0")
+
+
+class StateTracker:
+    """SLAM health from the wrapper's state topic when there is one, inferred otherwise."""
+
+    def __init__(self, config):
+        self._cfg = config
+        self._wrapper_code = None
+        self._last_pose_s = None
+        self._n_tracked = None
+        self._ever_ok = False
+
+    @property
+    def source(self):
+        return "wrapper" if self._wrapper_code is not None else "inferred"
+
+    def on_wrapper_state(self, code):
+        """Returns True when this state means a new map is being initialised after tracking."""
+        self._wrapper_code = int(code)
+        return self._ever_ok and self._wrapper_code == ORB_NOT_INITIALIZED
+
+    def on_pose(self, stamp_s):
+        self._last_pose_s = stamp_s
+
+    def on_tracked_points(self, n):
+        self._n_tracked = int(n)
+
+    @property
+    def n_tracked(self):
+        return self._n_tracked or 0
+
+    def evaluate(self, now_s):
+        """(state, reason) at time now_s; state is NOT_INITIALIZED, OK or LOST."""
+        if self._wrapper_code is not None:
+            ok, reason = self._from_wrapper()
+        else:
+            ok, reason = self._inferred(now_s)
+        if ok:
+            self._ever_ok = True
+            return OK, reason
+        return (LOST if self._ever_ok else NOT_INITIALIZED), reason
+
+    def _from_wrapper(self):
+        code = self._wrapper_code
+        if code in (ORB_OK, ORB_OK_KLT):
+            return True, "wrapper reports OK"
+        names = {ORB_SYSTEM_NOT_READY: "system not ready", ORB_NO_IMAGES_YET: "no images yet",
+                 ORB_NOT_INITIALIZED: "map not initialised", ORB_RECENTLY_LOST: "recently lost",
+                 ORB_LOST: "lost"}
+        return False, "wrapper reports " + names.get(code, f"unknown state {code}")
+
+    def _inferred(self, now_s):
+        if self._last_pose_s is None:
+            return False, "no camera pose received yet"
+        age = now_s - self._last_pose_s
+        if age > self._cfg.pose_timeout_s:
+            return False, f"no camera pose for {age:.2f} s"
+        if self._n_tracked is not None and self._n_tracked < self._cfg.min_tracked_points:
+            return False, (f"only {self._n_tracked} tracked points "
+                           f"(< {self._cfg.min_tracked_points})")
+        return True, "camera pose is fresh and enough points are tracked"
+
+
+@dataclasses.dataclass
+class Anchor:
+    """Where one SLAM map sits in ``map``: a rigid transform and the map's metres per unit."""
+
+    index: int
+    t_map_slam: np.ndarray
+    metres_per_unit: float
+
+    def base_pose(self, t_slam_cam, t_cam_base):
+        return self.t_map_slam @ scaled(t_slam_cam, self.metres_per_unit) @ t_cam_base
+
+
+class MapAnchors:
+    """Keeps one anchor per SLAM map and decides which map a camera pose belongs to."""
+
+    def __init__(self, config, t_base_cam):
+        self._cfg = config
+        self._t_cam_base = invert(np.asarray(t_base_cam, dtype=float))
+        self.anchors = []
+        self.current = None
+        self.last_base = None
+        self._needs_check = True
+        self._new_map_expected = False
+
+    def tracking_lost(self):
+        """The next pose may be in another map (a new one, or an earlier one after a merge)."""
+        self._needs_check = True
+
+    def expect_new_map(self):
+        """SLAM said it is initialising a new map (ORB-SLAM3 passes through NOT_INITIALIZED, and
+        its map-point count collapses), so the next pose must not be taken for a relocalisation in
+        the current map, which a new map's origin could otherwise happen to resemble."""
+        self._needs_check = True
+        self._new_map_expected = True
+
+    def set_scale(self, metres_per_unit):
+        if self.current is not None and metres_per_unit > 0:
+            self.current.metres_per_unit = float(metres_per_unit)
+
+    def update(self, t_slam_cam, metres_per_unit):
+        """Base pose in ``map`` for a camera pose in the SLAM frame; returns (T_map_base, event).
+
+        event is None, "first" (the first map), "new_map", "switched" (back to an earlier map),
+        or "relocalised" (tracking resumed in the same map).
+        """
+        event = None
+        if self.current is None:
+            self.current = self._new_anchor(t_slam_cam, metres_per_unit, np.eye(4))
+            event = "first"
+        else:
+            candidate = self.current.base_pose(t_slam_cam, self._t_cam_base)
+            step = np.linalg.norm(candidate[:3, 3] - self.last_base[:3, 3])
+            if self._needs_check or step > self._cfg.jump_threshold_m:
+                best = None if self._new_map_expected else self._best_anchor(t_slam_cam)
+                if best is None:
+                    level = planar(*self.last_base[:3, 3], yaw_of(self.last_base))
+                    self.current = self._new_anchor(t_slam_cam, metres_per_unit, level)
+                    event = "new_map"
+                elif best is not self.current:
+                    self.current = best
+                    event = "switched"
+                elif self._needs_check:
+                    event = "relocalised"
+        self._needs_check = False
+        self._new_map_expected = False
+        self.last_base = self.current.base_pose(t_slam_cam, self._t_cam_base)
+        return self.last_base, event
+
+    def _new_anchor(self, t_slam_cam, metres_per_unit, t_map_base):
+        # Choose T_map_slam so that the base is at t_map_base for this camera pose.
+        t_map_slam = t_map_base @ invert(scaled(t_slam_cam, metres_per_unit) @ self._t_cam_base)
+        anchor = Anchor(len(self.anchors), t_map_slam, float(metres_per_unit))
+        self.anchors.append(anchor)
+        return anchor
+
+    def _best_anchor(self, t_slam_cam):
+        best, best_d = None, self._cfg.relocalise_tolerance_m
+        for anchor in self.anchors:
+            d = np.linalg.norm(anchor.base_pose(t_slam_cam, self._t_cam_base)[:3, 3]
+                               - self.last_base[:3, 3])
+            if d <= best_d:
+                best, best_d = anchor, d
+        return best
+
+
+class ScaleEstimator:
+    """Metres per SLAM unit from pairs (SLAM distance, metric distance), robust to outliers."""
+
+    def __init__(self, prior_metres_per_unit=1.0, min_metric_m=0.15, max_samples=50):
+        self._prior = float(prior_metres_per_unit)
+        self._min_metric_m = float(min_metric_m)
+        self._ratios = []
+        self._max = int(max_samples)
+
+    def add(self, slam_units, metric_m):
+        """Adds one measured motion; returns False when it is too short or degenerate to use."""
+        if not (np.isfinite(slam_units) and np.isfinite(metric_m)):
+            return False
+        if metric_m < self._min_metric_m or slam_units <= 1e-9:
+            return False
+        self._ratios.append(metric_m / slam_units)
+        del self._ratios[:-self._max]
+        return True
+
+    def reset(self):
+        """A new SLAM map has its own scale: forget the samples, keep the last value as prior."""
+        value, _, _ = self.estimate()
+        self._prior = value
+        self._ratios = []
+
+    def estimate(self):
+        """(metres_per_unit, confidence in [0, 1], n_samples)."""
+        n = len(self._ratios)
+        if n == 0:
+            return self._prior, 0.0, 0
+        r = np.array(self._ratios)
+        med = float(np.median(r))
+        spread = float(np.median(np.abs(r - med))) / med if med > 0 else 1.0
+        confidence = (n / (n + 3.0)) * max(0.0, 1.0 - 5.0 * spread)
+        return med, float(confidence), n
+
+
+_MOVE = re.compile(r"^\s*(forward|back|left|right|up|down)\s+(\d+)\s*$")
+
+
+class DroneMoveScale:
+    """Pairs Tello move commands with their answers to measure SLAM units per commanded metre.
+
+    The drone executes commands one after another, so a command starts when the previous one
+    answered (or when it is sent to an idle drone) and ends at its own answer.
+    """
+
+    def __init__(self):
+        self._pending = []
+        self._start_pose = None
+
+    def on_command(self, text, current_position):
+        self._pending.append(text.strip())
+        if len(self._pending) == 1:
+            self._start_pose = current_position
+
+    def invalidate(self):
+        """Tracking was lost or the map changed: the running command's start pose is unusable."""
+        self._start_pose = None
+
+    def on_response(self, response, current_position):
+        """Returns (slam_units, metric_m) for a successful move with known poses, else None."""
+        if not self._pending:
+            return None
+        command = self._pending.pop(0)
+        start, self._start_pose = self._start_pose, current_position
+        match = _MOVE.match(command)
+        if not match or response.strip().lower() != "ok":
+            return None
+        if start is None or current_position is None:
+            return None
+        metric = int(match.group(2)) / 100.0
+        return float(np.linalg.norm(np.asarray(current_position) - np.asarray(start))), metric

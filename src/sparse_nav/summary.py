@@ -1,0 +1,42 @@
+"""Top-view pictures of a run (ROS-free, matplotlib without a display)."""
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
+import numpy as np  # noqa: E402
+
+
+def plot_summary(path, world, points, true_path, estimated_path, title=""):
+    """Writes a PNG: true walls and exits, SLAM points (red), true and estimated trajectories.
+
+    points, true_path and estimated_path are in the world's (ground truth) frame, metres.
+    """
+    fig, ax = plt.subplots(figsize=(8, 8), dpi=100)
+    for x1, y1, x2, y2 in world.wall_segments():
+        ax.plot([x1, x2], [y1, y2], color="black", linewidth=2)
+    pts = np.asarray(points).reshape(-1, 3)
+    if len(pts):
+        ax.scatter(pts[:, 0], pts[:, 1], s=2, color="red", label=f"SLAM points ({len(pts)})")
+    for exit_ in world.exits:
+        ax.scatter([exit_["x"]], [exit_["y"]], s=200, marker="*", color="green",
+                   label="true exit")
+    for trajectory, style, label in ((true_path, "b-", "true trajectory"),
+                                     (estimated_path, "c--", "estimated trajectory")):
+        if len(trajectory):
+            xy = np.asarray(trajectory)
+            ax.plot(xy[:, 0], xy[:, 1], style, linewidth=1.5, label=label)
+    xmin, ymin, xmax, ymax = world.bounds()
+    margin = 1.0
+    ax.set_xlim(xmin - margin, xmax + margin)
+    ax.set_ylim(ymin - margin, ymax + margin)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(title)
+    handles, labels = ax.get_legend_handles_labels()
+    unique = dict(zip(labels, handles))
+    ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=8)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

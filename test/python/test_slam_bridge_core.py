@@ -1,0 +1,140 @@
+"""The ROS-free core of slam_bridge: health, map anchoring, scale."""
+import numpy as np
+import pytest
+
+from sparse_nav.slam_bridge import (LOST, NOT_INITIALIZED, OK, ORB_LOST, ORB_NOT_INITIALIZED,
+                                    ORB_OK, BridgeConfig, DroneMoveScale, MapAnchors,
+                                    ScaleEstimator, StateTracker)
+from sparse_nav.transforms import invert, make_transform, planar, yaw_of
+
+# A forward-looking camera 0.5 m up: optical z = base x, optical x = -base y, optical y = -base z.
+MOUNT = make_transform(np.array([[0, 0, 1], [-1, 0, 0], [0, -1, 0]], float), [0.1, 0, 0.5])
+
+
+def camera_in_slam(t_slamorigin_base, base_pose, units_per_metre):
+    """Camera pose in a SLAM map whose origin is the camera at t_slamorigin_base (world frame)."""
+    t_origin = t_slamorigin_base @ MOUNT
+    t = invert(t_origin) @ base_pose @ MOUNT
+    t[:3, 3] *= units_per_metre
+    return t
+
+
+def test_state_from_wrapper():
+    tracker = StateTracker(BridgeConfig())
+    assert not tracker.on_wrapper_state(ORB_NOT_INITIALIZED)
+    assert tracker.evaluate(0.0)[0] == NOT_INITIALIZED
+    tracker.on_wrapper_state(ORB_OK)
+    assert tracker.evaluate(0.0)[0] == OK
+    tracker.on_wrapper_state(ORB_LOST)
+    state, reason = tracker.evaluate(0.0)
+    assert state == LOST and "lost" in reason
+    assert tracker.on_wrapper_state(ORB_NOT_INITIALIZED), "a new map after tracking worked"
+    assert tracker.source == "wrapper"
+
+
+def test_state_inferred_from_staleness_and_tracked_points():
+    cfg = BridgeConfig(pose_timeout_s=0.5, min_tracked_points=10)
+    tracker = StateTracker(cfg)
+    assert tracker.evaluate(1.0)[0] == NOT_INITIALIZED
+    tracker.on_pose(1.0)
+    tracker.on_tracked_points(50)
+    assert tracker.evaluate(1.2)[0] == OK
+    state, reason = tracker.evaluate(2.0)
+    assert state == LOST and "no camera pose" in reason
+    tracker.on_pose(2.0)
+    tracker.on_tracked_points(3)
+    state, reason = tracker.evaluate(2.0)
+    assert state == LOST and "3 tracked points" in reason
+    assert tracker.source == "inferred"
+
+
+def test_first_map_puts_base_at_origin_and_follows_motion():
+    anchors = MapAnchors(BridgeConfig(), MOUNT)
+    origin = planar(2.0, 1.0, 0.0, 0.7)
+    s = 3.0  # SLAM units per metre; the bridge is told 1/s metres per unit
+    base, event = anchors.update(camera_in_slam(origin, origin, s), 1.0 / s)
+    assert event == "first"
+    np.testing.assert_allclose(base, np.eye(4), atol=1e-9)
+    moved = origin @ planar(1.0, 0.5, 0.0, 0.3)
+    base, event = anchors.update(camera_in_slam(origin, moved, s), 1.0 / s)
+    assert event is None
+    np.testing.assert_allclose(base[:3, 3], [1.0, 0.5, 0.0], atol=1e-9)
+    assert yaw_of(base) == pytest.approx(0.3)
+
+
+def test_new_map_continues_from_last_pose_and_merge_returns_to_old_anchor():
+    anchors = MapAnchors(BridgeConfig(), MOUNT)
+    origin = planar(0.0, 0.0, 0.0, 0.0)
+    anchors.update(camera_in_slam(origin, origin, 2.0), 0.5)
+    last = planar(1.0, 0.0, 0.0, 0.0)
+    anchors.update(camera_in_slam(origin, last, 2.0), 0.5)
+    anchors.tracking_lost()
+    anchors.expect_new_map()
+    # A new SLAM map starts where the robot is, with another scale.
+    new_origin = planar(1.2, 0.1, 0.0, 0.1)
+    base, event = anchors.update(camera_in_slam(new_origin, new_origin, 5.0), 0.2)
+    assert event == "new_map" and anchors.current.index == 1
+    np.testing.assert_allclose(base[:3, 3], [1.0, 0.0, 0.0], atol=1e-9)
+    # SLAM merges back: the pose jumps into the first map's frame and scale.
+    back = planar(1.5, 0.2, 0.0, 0.2)
+    base, event = anchors.update(camera_in_slam(origin, back, 2.0), 0.5)
+    assert event == "switched" and anchors.current.index == 0
+    np.testing.assert_allclose(base[:3, 3], [1.5, 0.2, 0.0], atol=1e-9)
+
+
+def test_new_map_detected_without_hint_when_far_from_old_map():
+    anchors = MapAnchors(BridgeConfig(relocalise_tolerance_m=1.0), MOUNT)
+    origin = np.eye(4)
+    anchors.update(camera_in_slam(origin, origin, 1.0), 1.0)
+    for x in np.arange(0.2, 3.01, 0.2):
+        _, event = anchors.update(camera_in_slam(origin, planar(x, 0, 0, 0), 1.0), 1.0)
+        assert event is None
+    anchors.tracking_lost()
+    here = planar(3.1, 0, 0, 0)
+    base, event = anchors.update(camera_in_slam(here, here, 4.0), 0.25)
+    assert event == "new_map"
+    np.testing.assert_allclose(base[:3, 3], [3.0, 0, 0], atol=1e-9)
+
+
+def test_relocalisation_in_same_map_is_not_a_new_map():
+    anchors = MapAnchors(BridgeConfig(), MOUNT)
+    origin = np.eye(4)
+    anchors.update(camera_in_slam(origin, origin, 1.0), 1.0)
+    anchors.tracking_lost()
+    _, event = anchors.update(camera_in_slam(origin, planar(0.2, 0, 0, 0), 1.0), 1.0)
+    assert event == "relocalised" and len(anchors.anchors) == 1
+
+
+def test_scale_estimator_is_robust_and_confident_with_samples():
+    est = ScaleEstimator(prior_metres_per_unit=1.0)
+    assert est.estimate() == (1.0, 0.0, 0)
+    assert not est.add(1.0, 0.01), "too short a motion is not used"
+    assert not est.add(float("nan"), 1.0)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        est.add(1.0, 0.4 * (1 + 0.02 * rng.standard_normal()))
+    est.add(1.0, 9.0)  # an outlier
+    value, confidence, n = est.estimate()
+    assert value == pytest.approx(0.4, rel=0.02)
+    assert 0.5 < confidence <= 1.0 and n == 21
+    est.reset()
+    assert est.estimate() == (pytest.approx(0.4, rel=0.02), 0.0, 0)
+
+
+def test_drone_moves_pair_with_responses_in_order():
+    moves = DroneMoveScale()
+    moves.on_command("forward 100", np.zeros(3))
+    moves.on_command("cw 90", None)
+    assert moves.on_response("ok", np.array([0.0, 0.0, 2.5])) == (2.5, 1.0)
+    assert moves.on_response("ok", np.array([0.0, 0.0, 2.5])) is None  # a turn has no length
+    moves.on_command("left 50", np.zeros(3))
+    assert moves.on_response("error: obstacle", np.ones(3)) is None
+    moves.on_command("back 50", np.zeros(3))
+    moves.invalidate()
+    assert moves.on_response("ok", np.ones(3)) is None
+    assert moves.on_response("ok", np.ones(3)) is None  # an answer without a command
+
+
+def test_config_validation():
+    with pytest.raises(ValueError, match="pose_timeout_s"):
+        BridgeConfig(pose_timeout_s=0).validate()

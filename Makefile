@@ -15,7 +15,7 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 SOURCE := source $(WS)/devel/setup.bash
 
 DEBS := catkin ros-base-dev python3-rospy python3-rostest librostest-dev python3-rosbag \
-  python3-catkin-pkg python3-setuptools ros-message-generation ros-message-runtime \
+  python3-catkin-pkg python3-setuptools python3-genpy python3-roslaunch python3-tf2-msgs ros-message-generation ros-message-runtime \
   libsensor-msgs-dev libnav-msgs-dev libvisualization-msgs-dev libmap-msgs-dev libstd-srvs-dev \
   libdiagnostic-msgs-dev python3-nav-msgs python3-sensor-msgs python3-visualization-msgs \
   python3-map-msgs python3-std-srvs python3-geometry-msgs python3-rosgraph-msgs \

@@ -1,0 +1,28 @@
+"""Each config/<node>.yaml documents exactly the private parameters its node reads."""
+import os
+import re
+
+import pytest
+import yaml
+
+ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
+NODES = {"sim": "src/sparse_nav/ros/sim_node.py",
+         "slam_bridge": "src/sparse_nav/ros/slam_bridge_node.py"}
+
+
+def params_read_by(source):
+    text = open(os.path.join(ROOT, source)).read()
+    keys = set(re.findall(r'get_param\(\s*"~(\w+)"', text))
+    # slam_bridge reads its BridgeConfig fields in a loop over their names.
+    for block in re.findall(r'for field in \(([^)]*)\)', text):
+        keys |= set(re.findall(r'"(\w+)"', block))
+    return keys
+
+
+@pytest.mark.parametrize("node", sorted(NODES))
+def test_yaml_and_code_agree(node):
+    with open(os.path.join(ROOT, "config", f"{node}.yaml")) as f:
+        documented = set(yaml.safe_load(f))
+    read = params_read_by(NODES[node])
+    assert documented - read == set(), "documented but never read"
+    assert read - documented == set(), "read but not documented"

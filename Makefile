@@ -6,7 +6,9 @@ export PATH := /usr/bin:/bin:/usr/sbin:/sbin:$(PATH)
 export PYTHONDONTWRITEBYTECODE := 1
 
 ROOT := $(CURDIR)
-WS := $(ROOT)/build/ws
+# The workspace links back to this directory; roslaunch's resource search skips dot-directories,
+# which keeps it from walking that link in circles.
+WS := $(ROOT)/build/.ws
 RESULTS := $(ROOT)/build/test_results
 DEMO_OUT ?= $(ROOT)/demo_output
 WORLD ?= one_room

@@ -179,8 +179,8 @@ class SimNode:
         stamp = rospy.Time(0)
         walls = Marker(header=Header(stamp=stamp, frame_id=self.truth_frame), ns="walls", id=0,
                        type=Marker.LINE_LIST, action=Marker.ADD)
-        walls.scale.x = 0.05
-        walls.color = ColorRGBA(0.2, 0.2, 0.2, 1.0)
+        walls.scale.x = 0.08
+        walls.color = ColorRGBA(0.85, 0.85, 0.85, 1.0)
         walls.pose.orientation.w = 1.0
         for x1, y1, x2, y2 in self.world.wall_segments():
             walls.points += [Point(x1, y1, 0.0), Point(x2, y2, 0.0)]

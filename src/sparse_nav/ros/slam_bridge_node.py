@@ -63,6 +63,9 @@ class SlamBridgeNode:
         self.n_poses = 0
         self.n_points = 0
         self.points_before_loss = 0
+        self.reacquiring = False
+        self.map_event = ""
+        self.last_tf_stamp = None
         self.bad_inputs = 0
 
         self.state_pub = rospy.Publisher("slam/state", SlamState, queue_size=10, latch=True)
@@ -123,19 +126,19 @@ class SlamBridgeNode:
         self.n_poses += 1
         metres_per_unit, _, _ = self.scale.estimate()
         t_map_base, event = self.anchors.update(t_slam_cam, metres_per_unit)
+        self.reacquiring = False
         if event == "new_map":
             self.scale.reset()
             self.drone_moves.invalidate()
             self.last_slam_position = None
             self.new_map_pending = True
-            rospy.logwarn("slam_bridge: SLAM started a new map (index %d)",
-                          self.anchors.current.index)
+            self.map_event = f"SLAM started a new map (index {self.anchors.current.index})"
         elif event == "switched":
             self.scale.reset()
             self.drone_moves.invalidate()
             self.last_slam_position = None
             self.new_map_pending = True
-            rospy.logwarn("slam_bridge: SLAM merged back into map %d", self.anchors.current.index)
+            self.map_event = f"SLAM merged back into map {self.anchors.current.index}"
         self.t_map_base = t_map_base
         self.last_slam_position = t_slam_cam[:3, 3].copy()
         if not self.publish_odom_tf:
@@ -160,13 +163,13 @@ class SlamBridgeNode:
             return
         points = points[np.all(np.isfinite(points), axis=1)]
         anchor = self.anchors.current
-        if self.state != OK:
+        if self.reacquiring:
             # ORB-SLAM3 publishes only the active map: a collapsed count means a new map.
             if self.points_before_loss and len(points) < 0.5 * self.points_before_loss:
                 self.anchors.expect_new_map()
                 self.points_before_loss = 0
             return
-        if anchor is None:
+        if anchor is None or self.state != OK:
             return
         self.points_before_loss = len(points)
         metric = points * anchor.metres_per_unit
@@ -224,12 +227,13 @@ class SlamBridgeNode:
         now = rospy.Time.now()
         state, reason = self.tracker.evaluate(now.to_sec())
         if state != OK and self.state == OK:
+            self.reacquiring = True
             self.anchors.tracking_lost()
             self.drone_moves.invalidate()
             self.last_odom_position = None
         published = state
         if state == OK and self.new_map_pending:
-            published, reason = NEW_MAP, f"SLAM map {self.anchors.current.index} is now active"
+            published, reason = NEW_MAP, self.map_event
             self.new_map_pending = False
         if published != self.state or published == NEW_MAP:
             self._publish_state(published, reason, now)
@@ -251,8 +255,10 @@ class SlamBridgeNode:
         log("slam_bridge: %s (%s)", STATE_NAMES[state], reason)
 
     def _publish_tf(self, stamp):
-        if self.t_map_base is None:
+        # Under /clock the timer can fire twice at one sim time; tf2 rejects repeated stamps.
+        if self.t_map_base is None or stamp == self.last_tf_stamp:
             return
+        self.last_tf_stamp = stamp
         transforms = []
         if self.publish_odom_tf:
             transforms.append(matrix_to_transform_stamped(np.eye(4), stamp, self.map_frame,

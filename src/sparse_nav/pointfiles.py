@@ -62,6 +62,7 @@ _COMMENT_LINE = re.compile(rb"(?m)^[ \t\r\v\f]*#[^\n]*")
 _FIELD_SPLIT = re.compile(r"[ \t\r\v\f]*[,;][ \t\r\v\f]*|[ \t\r\v\f]+")
 _PLY_END_HEADER = re.compile(rb"(?m)^end_header[ \t]*\r?\n")
 _PCD_COMMENT = re.compile(rb"#\s*\.PCD\b", re.IGNORECASE)
+_CHUNK_BYTES = 1 << 20
 
 
 class PointFileError(ValueError):
@@ -365,56 +366,121 @@ def _read_text(name, data):
 
 
 def _read_text_fast(name, body):
-    """Parse with numpy when every token is a number and no comma field is empty inside."""
-    if b"," in body or b";" in body:
-        compact = body.translate(_HARD_SEPARATORS_TO_COMMA, b" \t\r\v\f")
+    """Vectorised reader; raises _NotATable when the exact reader must decide.
+
+    The body is cut at line breaks into chunks of about _CHUNK_BYTES so that the numpy
+    temporaries stay in cache, which matters more than the number of passes.
+    """
+    pieces = []
+    row_counts = []
+    first_short = None
+    lines_before = 0
+    position = 0
+    while position < len(body):
+        end = body.find(b"\n", min(position + _CHUNK_BYTES, len(body)))
+        end = len(body) if end < 0 else end + 1
+        chunk = body[position:end]
+        position = end
+        points, counts = _first_three_columns(chunk)
+        rows = np.flatnonzero(counts > 0)
+        short = np.flatnonzero(counts[rows] < 3)
+        if len(short) and first_short is None:
+            line = int(rows[short[0]])
+            # Only its token count is known; a word in it needs the exact reader's message.
+            text = chunk.split(b"\n")[line].decode("utf-8", "replace")
+            if not all(_is_number(field) for field in _split_fields(text)):
+                raise _NotATable()
+            first_short = (lines_before + line + 1, int(counts[line]))
+        pieces.append(points)
+        row_counts.append(counts[rows])
+        lines_before += len(counts) - 1  # counts has one entry per line break, plus one
+    row_counts = np.concatenate(row_counts) if row_counts else np.zeros(0, dtype=np.intp)
+    if not len(row_counts):
+        raise PointFileError(f"{name}: no points (the file has no data lines)")
+    if first_short is not None:
+        raise _short_rows_error(name, row_counts, *first_short)
+    return np.concatenate(pieces), int(row_counts.max())
+
+
+def _first_three_columns(chunk):
+    """(x y z rows, tokens per line) of a chunk of whole text lines.
+
+    Only the first three fields of a line are parsed; the rest are cut away before numpy
+    sees them, which is most of the work for files that carry a 16-value pose per point.
+    Lines with fewer than three fields give no row (the caller reports them).
+    """
+    if b"," in chunk or b";" in chunk:
+        compact = chunk.translate(_HARD_SEPARATORS_TO_COMMA, b" \t\r\v\f")
         if (b",," in compact or b"\n," in compact or compact.startswith(b",")) \
                 and _EMPTY_FIELD_BEFORE_VALUE.search(compact):
             raise _NotATable()
-    if b"#" in body:
-        body = _COMMENT_LINE.sub(b"", body)
-    flat, counts = _numeric_table(body.translate(_SEPARATORS_TO_SPACE))
-    rows = counts > 0
-    if not rows.any():
-        raise PointFileError(f"{name}: no points (the file has no data lines)")
-    short = rows & (counts < 3)
-    if short.any():
-        raise _short_rows_error(name, counts[rows], int(np.flatnonzero(short)[0]) + 1,
-                                int(counts[short][0]))
+    if b"#" in chunk:
+        chunk = _COMMENT_LINE.sub(b"", chunk)
+    buf = np.frombuffer(chunk.translate(_SEPARATORS_TO_SPACE), dtype=np.uint8)
+    starts, line_breaks, counts = _token_layout(buf)
+    if not len(starts):
+        return np.empty((0, 3)), counts
+    rows = np.flatnonzero(counts >= 3)
     row_counts = counts[rows]
-    n_columns = int(row_counts.max())
-    if row_counts.min() == n_columns:
-        points = flat.reshape(-1, n_columns)[:, :3]
-    else:
-        starts = np.cumsum(row_counts) - row_counts
-        points = flat[starts[:, None] + np.arange(3)]
-    return points.astype(np.float64), n_columns
+    # Index of each line's first token: tokens are numbered through the chunk in order.
+    first_token = (np.cumsum(counts) - counts)[rows]
+    line_ends = np.append(line_breaks, len(buf))
+    # Byte ranges to cut: from the fourth token to the end of its line, and whole lines with
+    # fewer than three tokens, so that every remaining line holds exactly three tokens.
+    wide = row_counts > 3
+    short = np.flatnonzero((counts > 0) & (counts < 3))
+    cut_from = np.concatenate((starts[first_token[wide] + 3],
+                               np.concatenate(([0], line_breaks + 1))[short]))
+    if len(cut_from):
+        cut_to = np.concatenate((line_ends[rows[wide]], line_ends[short]))
+        delta = np.zeros(len(buf) + 1, dtype=np.int8)
+        delta[cut_from] = 1
+        delta[cut_to] = -1
+        buf = buf[np.cumsum(delta[:-1], dtype=np.int8) == 0]
+    flat = _parse_numbers(buf.tobytes())
+    if len(flat) != 3 * len(rows):
+        raise _NotATable()
+    return flat.reshape(-1, 3), counts
 
 
-def _numeric_table(text):
-    """Values and per-line token counts of whitespace-separated numbers.
+def _token_layout(buf):
+    """(token start offsets, newline offsets, tokens per line) of space/newline text."""
+    gap = buf <= 32
+    token_start = np.empty(len(buf), dtype=bool)
+    if len(buf):
+        token_start[0] = not gap[0]
+        np.greater(gap[:-1], gap[1:], out=token_start[1:])
+    starts = np.flatnonzero(token_start)
+    line_breaks = np.flatnonzero(buf == 10)
+    counts = np.bincount(np.searchsorted(line_breaks, starts), minlength=len(line_breaks) + 1)
+    return starts, line_breaks, counts
 
-    ``text`` may only contain spaces and newlines as whitespace. Raises _NotATable when a
-    token is not a number, so that the caller can find the exact line with Python.
-    """
+
+def _parse_numbers(text):
+    """All numbers of space-separated text; _NotATable at the first token numpy cannot read."""
+    if not text.strip():
+        return np.empty(0)  # numpy reads blank text as [-1.0]
     with warnings.catch_warnings():
         # numpy warns (and stops) at the first token it cannot parse; make that an exception.
         warnings.simplefilter("error", DeprecationWarning)
         try:
-            flat = np.fromstring(text, dtype=np.float64, sep=" ")
+            return np.fromstring(text, dtype=np.float64, sep=" ")
         except (DeprecationWarning, ValueError):
             raise _NotATable() from None
+
+
+def _numeric_table(text):
+    """Values and per-line token counts of a body where every token must be a number.
+
+    ``text`` may only contain spaces and newlines as whitespace. Raises _NotATable when a
+    token is not a number, so that the caller can find the exact line with Python.
+    """
     buf = np.frombuffer(text, dtype=np.uint8)
-    newline = buf == 10
-    gap = newline | (buf == 32)
-    token_start = ~gap
-    token_start[1:] &= gap[:-1]
-    starts = np.flatnonzero(token_start)
+    starts, _, counts = _token_layout(buf)
+    flat = _parse_numbers(text)
     if len(starts) != len(flat):
-        # numpy also reads e.g. "1-2" as two numbers, and "   " as -1; counts must agree.
+        # numpy may read one token as two numbers; the counts must agree exactly.
         raise _NotATable()
-    line_breaks = np.flatnonzero(newline)
-    counts = np.bincount(np.searchsorted(line_breaks, starts), minlength=len(line_breaks) + 1)
     return flat, counts
 
 
@@ -428,6 +494,8 @@ def _read_text_exact(name, body):
         if not stripped or stripped.startswith("#"):
             continue
         fields = _split_fields(line)
+        if not fields:
+            continue  # only separators, e.g. ",,,": as blank as a blank line
         xyz = []
         for column, field in enumerate(fields[:3], start=1):
             if field == "":
@@ -439,7 +507,7 @@ def _read_text_exact(name, body):
                                      f"({field[:40]!r}) is not a number") from None
         if len(xyz) < 3:
             row_counts = [len(_split_fields(other)) for other in text.split("\n")
-                          if other.strip() and not other.strip().startswith("#")]
+                          if not other.strip().startswith("#")]
             raise _short_rows_error(name, np.array(row_counts), number, len(xyz))
         values.append(xyz)
         counts.append(len(fields))
@@ -450,6 +518,7 @@ def _read_text_exact(name, body):
 
 def _short_rows_error(name, row_counts, line_number, n_numeric):
     """Error for a row with fewer than 3 columns; about the whole file if no row has 3."""
+    row_counts = row_counts[row_counts > 0]  # blank lines are not rows
     widest = int(row_counts.max())
     if widest < 3:
         if int(row_counts.min()) == widest:
@@ -623,8 +692,9 @@ def _ply_binary_vertices(name, body, elements, index, order, encoding):
                                  f"vertices present ({len(body) - offset} of {need} bytes)")
         table = np.frombuffer(body, dtype=dtype, count=n, offset=offset)
         names = [p["name"] for p in props]
-        return np.column_stack([table[f"p{names.index(axis)}"].astype(np.float64)
-                                for axis in "xyz"])
+        with np.errstate(invalid="ignore"):  # signalling NaNs in the file are still just NaN
+            return np.column_stack([table[f"p{names.index(axis)}"].astype(np.float64)
+                                    for axis in "xyz"])
     points = np.empty((n, 3))
     for k in range(n):
         for prop in props:
@@ -803,7 +873,8 @@ def _pcd_binary_points(name, body, header, fields, counts, n):
                              f" of {n} points present ({len(body)} of {need} bytes)")
     table = np.frombuffer(body, dtype=dtype, count=n)
     columns = []
-    for axis in "xyz":
-        column = table[f"f{fields.index(axis)}"]
-        columns.append((column[:, 0] if column.ndim == 2 else column).astype(np.float64))
+    with np.errstate(invalid="ignore"):  # signalling NaNs in the file are still just NaN
+        for axis in "xyz":
+            column = table[f"f{fields.index(axis)}"]
+            columns.append((column[:, 0] if column.ndim == 2 else column).astype(np.float64))
     return np.column_stack(columns)

@@ -60,7 +60,9 @@ class DemoNode:
     def _record(self, msg, topic):
         with self.lock:
             if self.bag is not None:
-                self.bag.write(topic, msg, rospy.Time.now() if topic.startswith("/tf") else None)
+                # Record at sim time: rosbag would otherwise stamp with wall time, and a replay
+                # with --clock would then run on a clock unrelated to the message stamps.
+                self.bag.write(topic, msg, rospy.Time.now())
             self.latest[topic] = msg
             if topic == "tello/response":
                 self.responses.append(msg.data)

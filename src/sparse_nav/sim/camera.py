@@ -66,11 +66,13 @@ def occluded_mask(camera_xyz, points, segments, heights):
 def facing_cosine(camera_xyz, points, normals):
     """Cosine (N,) between each feature's surface normal and the direction to the camera.
 
-    Negative means the feature's surface faces away (its back side), which hides it.
+    Negative means the feature's surface faces away (its back side), which hides it. A zero
+    normal marks a small object seen alike from every side: cosine 1.
     """
     v = camera_xyz[None, :] - points
     norm = np.maximum(np.linalg.norm(v, axis=1), 1e-9)
-    return np.einsum("ij,ij->i", v, normals) / norm
+    cos = np.einsum("ij,ij->i", v, normals) / norm
+    return np.where(np.any(normals != 0.0, axis=1), cos, 1.0)
 
 
 class Camera:

@@ -94,6 +94,11 @@ class World:
         room outline.
       wall_texture_band_m, wall_texture_band_fraction: that fraction of wall features lies in the
         height band [lo, hi] (furniture, posters, door frames); the rest spreads floor to ceiling.
+      wall_texture_cluster_fraction: share of wall features gathered in texture patches.
+      clutter_per_m2: density (features per m^2 of floor inside the room outlines) of small
+        objects (chairs, plants, lamps) in the wall texture band: features seen from any side
+        that are not obstacles.
+      outlines: closed room outlines as (M, 2) vertex arrays (m), doors not cut.
     """
 
     name: str
@@ -107,6 +112,9 @@ class World:
     door_gaps: list = dataclasses.field(default_factory=list)
     wall_texture_band_m: tuple = (0.3, 1.9)
     wall_texture_band_fraction: float = 0.6
+    wall_texture_cluster_fraction: float = 0.5
+    clutter_per_m2: float = 0.0
+    outlines: list = dataclasses.field(default_factory=list)
 
     def wall_segments(self):
         """Wall segments as a (K, 4) float array of (x1, y1, x2, y2) in metres."""
@@ -160,9 +168,7 @@ class World:
                 [np.array([-d[1], d[0]]), np.array([d[1], -d[0]])]
             for n2 in normals:
                 n = rng.poisson(wall.texture_per_m2 * length * h)
-                u = rng.uniform(_FEATURE_END_MARGIN_M, length - _FEATURE_END_MARGIN_M, n)
-                in_band = rng.random(n) < self.wall_texture_band_fraction
-                z = np.where(in_band, rng.uniform(lo, hi, n), rng.uniform(0.0, h, n))
+                u, z = self._wall_face_samples(rng, n, length, h, lo, hi)
                 xy = np.array([wall.x1, wall.y1]) + u[:, None] * d
                 pts.append(np.column_stack([xy, z]))
                 nrm.append(np.tile([n2[0], n2[1], 0.0], (n, 1)))
@@ -195,9 +201,54 @@ class World:
             xy = rng.uniform([xmin, ymin], [xmax, ymax], (n, 2))
             pts.append(np.column_stack([xy, np.full(n, z)]))
             nrm.append(np.tile([0.0, 0.0, nz], (n, 1)))
+        if self.clutter_per_m2 > 0:
+            clutter = self._clutter(rng, lo, hi)
+            pts.append(clutter)
+            nrm.append(np.zeros_like(clutter))  # no normal: seen from every side
         if not pts:
             return np.zeros((0, 3)), np.zeros((0, 3))
         return np.vstack(pts), np.vstack(nrm)
+
+    def _clutter(self, rng, lo, hi):
+        """Small-object features inside the outlines, clear of walls and boxes, (K, 3) m."""
+        out = []
+        segs = self.obstacle_segments()[0]
+        for poly in self.outlines:
+            area = polygon_area(poly)
+            n = rng.poisson(self.clutter_per_m2 * area)
+            pmin, pmax = poly.min(axis=0), poly.max(axis=0)
+            cand = rng.uniform(pmin, pmax, (int(n * np.prod(pmax - pmin) / area) + 1, 2))
+            cand = cand[points_in_polygon(cand, poly)][:n]
+            if len(cand) and len(segs):
+                cand = cand[_distances_to_segments(cand, segs).min(axis=1) > 0.2]
+            for box in self.boxes:
+                cand = cand[~points_in_polygon(cand, box.footprint())]
+            out.append(np.column_stack([cand, rng.uniform(lo, hi, len(cand))]))
+        return np.vstack(out) if out else np.zeros((0, 3))
+
+    def _wall_face_samples(self, rng, n, length, h, lo, hi):
+        """n feature positions on a wall face: u along it (m), z height (m).
+
+        Real walls are textured in patches (posters, shelves, frames) between blank paint:
+        ``wall_texture_cluster_fraction`` of the features gather in Gaussian patches, the rest
+        spread evenly, a share of them in the height band [lo, hi].
+        """
+        u0, u1 = _FEATURE_END_MARGIN_M, length - _FEATURE_END_MARGIN_M
+        u = rng.uniform(u0, u1, n)
+        in_band = rng.random(n) < self.wall_texture_band_fraction
+        z = np.where(in_band, rng.uniform(lo, hi, n), rng.uniform(0.0, h, n))
+        clustered = rng.random(n) < self.wall_texture_cluster_fraction
+        k = int(np.count_nonzero(clustered))
+        if k:
+            n_patches = 1 + rng.poisson(length / 2.0)
+            cu = rng.uniform(u0, u1, n_patches)
+            cz = rng.uniform(lo, hi, n_patches) if hi > lo else np.full(n_patches, lo)
+            su = rng.uniform(0.15, 0.6, n_patches)
+            sz = rng.uniform(0.1, 0.4, n_patches)
+            which = rng.integers(n_patches, size=k)
+            u[clustered] = np.clip(cu[which] + su[which] * rng.standard_normal(k), u0, u1)
+            z[clustered] = np.clip(cz[which] + sz[which] * rng.standard_normal(k), 0.0, h)
+        return u, z
 
     def obstacle_segments(self):
         """Walls and box edges as (K, 4) segments (m) with heights (K,) m (walls: ceiling)."""
@@ -267,7 +318,7 @@ def load_world(name_or_path):
 
 _TOP_KEYS = {"name", "ceiling_height_m", "floor_texture_per_m2", "ceiling_texture_per_m2",
              "start", "walls", "boxes", "exits", "wall_texture_band_m",
-             "wall_texture_band_fraction"}
+             "wall_texture_band_fraction", "wall_texture_cluster_fraction", "clutter_per_m2"}
 _REQUIRED_TOP = ("ceiling_height_m", "start", "walls", "exits")
 _WALL_KEYS = {"name", "points", "closed", "texture_per_m2", "segment_texture_per_m2", "doors"}
 _DOOR_KEYS = {"segment", "at_m", "width_m"}
@@ -337,6 +388,8 @@ def world_from_dict(data, default_name="world", source=None):
       boxes: [{center: [x, y], size: [w, d], yaw_deg (default 0), height_m, texture_per_m2}]
       exits: [{x, y, width_m}], each at a door gap of a closed outline
       wall_texture_band_m: [lo, hi], wall_texture_band_fraction: in [0, 1] (optional)
+      wall_texture_cluster_fraction: in [0, 1] (optional, default 0.5)
+      clutter_per_m2: >= 0 (optional, default 0): small-object features per m^2 of floor
 
     Raises:
       WorldError: naming ``source`` and the problem.
@@ -407,9 +460,18 @@ def world_from_dict(data, default_name="world", source=None):
     if band_frac > 1:
         ck.fail("wall_texture_band_fraction", f"must be in [0, 1], got {band_frac:g}")
 
+    cluster_frac = ck.number(data.get("wall_texture_cluster_fraction", 0.5),
+                             "wall_texture_cluster_fraction", 0.0)
+    if cluster_frac > 1:
+        ck.fail("wall_texture_cluster_fraction", f"must be in [0, 1], got {cluster_frac:g}")
+
+    clutter = ck.number(data.get("clutter_per_m2", 0.0), "clutter_per_m2", 0.0)
+
     world = World(name=name, walls=walls, boxes=boxes, ceiling_height_m=ceiling,
                   floor_texture=floor_tex, ceiling_texture=ceil_tex, exits=exits, start=start,
-                  door_gaps=gaps, wall_texture_band_m=band, wall_texture_band_fraction=band_frac)
+                  door_gaps=gaps, wall_texture_band_m=band, wall_texture_band_fraction=band_frac,
+                  wall_texture_cluster_fraction=cluster_frac, clutter_per_m2=clutter,
+                  outlines=outlines)
     _check_start(ck, world, outlines)
     return world
 
@@ -532,12 +594,33 @@ def _check_start(ck, world, outlines):
 
 def point_in_polygon(p, poly):
     """True if the 2D point p lies inside the polygon (M, 2) (even-odd rule)."""
-    x, y = float(p[0]), float(p[1])
-    xs, ys = poly[:, 0], poly[:, 1]
-    xj, yj = np.roll(xs, 1), np.roll(ys, 1)
-    crosses = ((ys > y) != (yj > y)) & (x < (xj - xs) * (y - ys) / np.where(yj == ys, 1e-300,
-                                                                           yj - ys) + xs)
-    return bool(np.count_nonzero(crosses) % 2)
+    return bool(points_in_polygon(np.asarray(p, dtype=float).reshape(1, 2), poly)[0])
+
+
+def points_in_polygon(points, poly):
+    """Boolean mask (N,) of 2D points (N, 2) inside the polygon (M, 2) (even-odd rule)."""
+    x, y = points[:, 0:1], points[:, 1:2]
+    xs, ys = poly[None, :, 0], poly[None, :, 1]
+    xj, yj = np.roll(xs, 1, axis=1), np.roll(ys, 1, axis=1)
+    dy = np.where(yj == ys, 1e-300, yj - ys)
+    crosses = ((ys > y) != (yj > y)) & (x < (xj - xs) * (y - ys) / dy + xs)
+    return np.count_nonzero(crosses, axis=1) % 2 == 1
+
+
+def polygon_area(poly):
+    """Area (m^2) of a simple polygon (M, 2)."""
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def _distances_to_segments(points, segs):
+    """Distances (N, K) in metres from 2D points (N, 2) to segments (K, 4)."""
+    a = segs[None, :, :2]
+    ab = segs[None, :, 2:] - a
+    ap = points[:, None, :] - a
+    t = np.clip(np.sum(ap * ab, axis=2) / np.maximum(np.sum(ab * ab, axis=2), 1e-18), 0, 1)
+    d = ap - t[:, :, None] * ab
+    return np.hypot(d[:, :, 0], d[:, :, 1])
 
 
 def segment_distances(p, segs):

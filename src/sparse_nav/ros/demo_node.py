@@ -21,8 +21,8 @@ from tf2_msgs.msg import TFMessage
 from sparse_nav.msg import SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, transform_to_matrix
+from sparse_nav.ros.sim_node import load_ros_world
 from sparse_nav.scanning import initial_scan, to_tello_commands, to_velocity_segments
-from sparse_nav.sim import load_world
 from sparse_nav.summary import plot_summary
 
 RECORDED = [
@@ -130,7 +130,7 @@ class DemoNode:
         raw_points = cloud_to_points(raw) if raw is not None else np.empty((0, 3))
         write_points_csv(os.path.join(self.output_dir, "cloud.csv"), raw_points)
 
-        world = load_world(self.world_name)
+        world = load_ros_world(self.world_name)
         map_points = np.empty((0, 3))
         if "slam/points" in latest:
             map_points = cloud_to_points(latest["slam/points"])

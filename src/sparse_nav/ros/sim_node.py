@@ -1,7 +1,9 @@
 """sim: the built-in ORB-SLAM3 + robot simulator, publishing what an ORB-SLAM3 wrapper publishes."""
+import os
 import time
 
 import numpy as np
+import rospkg
 import rospy
 import tf2_ros
 from geometry_msgs.msg import Point, PoseStamped, Twist
@@ -16,12 +18,18 @@ from sparse_nav.sim import DroneCommandError, SimConfig, Simulator, TrackingStat
 from sparse_nav.transforms import invert, planar
 
 
+def load_ros_world(name_or_path):
+    """A world by name from this package's share directory (source or install space), or a path."""
+    shipped = os.path.join(rospkg.RosPack().get_path("sparse_nav"), "worlds", f"{name_or_path}.yaml")
+    return load_world(shipped if os.path.isfile(shipped) else name_or_path)
+
+
 class SimNode:
     """Steps the ROS-free simulator on its own clock and publishes its outputs."""
 
     def __init__(self):
         world_name = rospy.get_param("~world", "one_room")
-        self.world = load_world(world_name)
+        self.world = load_ros_world(world_name)
         cfg = SimConfig()
         cfg.robot = rospy.get_param("~robot", cfg.robot)
         cfg.seed = int(rospy.get_param("~seed", cfg.seed))
@@ -137,7 +145,9 @@ class SimNode:
         if out.stamp_s >= self.next_all_points_s and len(out.all_points):
             self.all_pub.publish(points_to_cloud(out.all_points, header))
             self.next_all_points_s = out.stamp_s + 1.0 / self.all_points_rate_hz
-        self.truth_scale_pub.publish(Float64(data=float(self.sim.true_slam_scale())))
+        true_scale = self.sim.true_slam_scale()
+        if np.isfinite(true_scale):  # no SLAM map, no scale
+            self.truth_scale_pub.publish(Float64(data=float(true_scale)))
 
     def _send_truth_alignment(self):
         """map -> sim_world, so rviz can draw the true walls under the estimate.

@@ -55,8 +55,11 @@ class Wall:
 
 @dataclasses.dataclass(frozen=True)
 class Box:
-    """A furniture box (or pillar): footprint centre (x, y) m, size (w along its x, d along its y) m,
-    heading yaw_rad about +z, height_m above the floor, texture on its sides and top (features/m^2)."""
+    """A furniture box or pillar standing on the floor.
+
+    ``center`` (x, y) m; ``size`` (w along its own x, d along its own y) m; ``yaw_rad`` heading
+    about +z; ``height_m`` above the floor; ``texture_per_m2`` on its sides and top (features/m^2).
+    """
 
     center: tuple
     size: tuple
@@ -291,7 +294,8 @@ def load_world(name_or_path):
         try:
             seed = int(spec[len("random:"):])
         except ValueError:
-            raise WorldError(f"world {spec!r}: the seed after 'random:' must be an integer") from None
+            raise WorldError(f"world {spec!r}: the seed after 'random:' must be an "
+                             "integer") from None
         return random_world(seed)
     looks_like_path = (os.sep in spec or spec.endswith((".yaml", ".yml"))
                        or (os.altsep is not None and os.altsep in spec))
@@ -316,15 +320,17 @@ def load_world(name_or_path):
     return world_from_dict(data, default_name=path.stem, source=str(path))
 
 
-_TOP_KEYS = {"name", "ceiling_height_m", "floor_texture_per_m2", "ceiling_texture_per_m2",
-             "start", "walls", "boxes", "exits", "wall_texture_band_m",
-             "wall_texture_band_fraction", "wall_texture_cluster_fraction", "clutter_per_m2"}
+_TOP_KEYS = frozenset({
+    "name", "ceiling_height_m", "floor_texture_per_m2", "ceiling_texture_per_m2", "start",
+    "walls", "boxes", "exits", "wall_texture_band_m", "wall_texture_band_fraction",
+    "wall_texture_cluster_fraction", "clutter_per_m2"})
 _REQUIRED_TOP = ("ceiling_height_m", "start", "walls", "exits")
-_WALL_KEYS = {"name", "points", "closed", "texture_per_m2", "segment_texture_per_m2", "doors"}
-_DOOR_KEYS = {"segment", "at_m", "width_m"}
-_BOX_KEYS = {"center", "size", "yaw_deg", "height_m", "texture_per_m2"}
-_EXIT_KEYS = {"x", "y", "width_m"}
-_START_KEYS = {"x", "y", "yaw_deg"}
+_WALL_KEYS = frozenset({"name", "points", "closed", "texture_per_m2", "segment_texture_per_m2",
+                        "doors"})
+_DOOR_KEYS = frozenset({"segment", "at_m", "width_m"})
+_BOX_KEYS = frozenset({"center", "size", "yaw_deg", "height_m", "texture_per_m2"})
+_EXIT_KEYS = frozenset({"x", "y", "width_m"})
+_START_KEYS = frozenset({"x", "y", "yaw_deg"})
 
 
 class _Checker:

@@ -13,9 +13,7 @@ def collect(results_dir):
     passed, failed, skipped, broken = [], [], [], []
     for dirpath, _, files in os.walk(results_dir):
         for name in sorted(files):
-            # rostest writes rostest-*.xml with the outcome of its test node and also keeps that
-            # node's own rosunit-*.xml: counting both would count each rostest twice.
-            if not name.endswith(".xml") or name.startswith("rosunit-"):
+            if not name.endswith(".xml"):
                 continue
             path = os.path.join(dirpath, name)
             try:
@@ -25,11 +23,17 @@ def collect(results_dir):
                 continue
             cases = root.iter("testcase")
             found = False
+            # rostest-*.xml only says whether the harness ran its test node (it passes even when
+            # the node's tests fail); the node's own results are in rosunit-*.xml. So a rostest
+            # file contributes failures only, and the test cases are counted from rosunit files.
+            harness = name.startswith("rostest-")
             for case in cases:
                 found = True
                 label = f"{name}: {case.get('classname', '')}.{case.get('name', '')}"
                 if case.find("failure") is not None or case.find("error") is not None:
                     failed.append(label)
+                elif harness:
+                    continue
                 elif case.find("skipped") is not None:
                     skipped.append(label)
                 else:

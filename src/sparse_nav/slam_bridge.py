@@ -59,7 +59,12 @@ class StateTracker:
         return self._ever_ok and self._wrapper_code == ORB_NOT_INITIALIZED
 
     def on_pose(self, stamp_s):
-        self._last_pose_s = stamp_s
+        """Records a pose time; returns the gap (s) since the previous pose when it is longer than
+        pose_timeout_s (tracking was lost in between, even if nobody looked at that moment)."""
+        previous, self._last_pose_s = self._last_pose_s, stamp_s
+        if previous is not None and stamp_s - previous > self._cfg.pose_timeout_s:
+            return stamp_s - previous
+        return None
 
     def on_tracked_points(self, n):
         self._n_tracked = int(n)

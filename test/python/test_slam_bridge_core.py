@@ -48,6 +48,13 @@ def test_state_inferred_from_staleness_and_tracked_points():
     assert tracker.source == "inferred"
 
 
+def test_pose_gap_reveals_a_loss_nobody_saw():
+    tracker = StateTracker(BridgeConfig(pose_timeout_s=0.5))
+    assert tracker.on_pose(1.0) is None
+    assert tracker.on_pose(1.1) is None
+    assert tracker.on_pose(2.5) == pytest.approx(1.4)
+
+
 def test_first_map_puts_base_at_origin_and_follows_motion():
     anchors = MapAnchors(BridgeConfig(), MOUNT)
     origin = planar(2.0, 1.0, 0.0, 0.7)

@@ -1,4 +1,7 @@
 """slam_bridge: REP-105 TF, SLAM health and metric scale from an ORB-SLAM3 wrapper's topics."""
+import functools
+import threading
+
 import numpy as np
 import rospy
 import tf2_ros
@@ -14,6 +17,15 @@ from sparse_nav.ros.conversions import (CloudError, cloud_to_points, matrix_to_t
 from sparse_nav.slam_bridge import (LOST, NEW_MAP, OK, STATE_NAMES, BridgeConfig, DroneMoveScale,
                                     MapAnchors, ScaleEstimator, StateTracker)
 from sparse_nav.transforms import invert
+
+
+def _locked(method):
+    """Runs a callback under the node's lock (rospy calls each subscriber on its own thread)."""
+    @functools.wraps(method)
+    def wrapper(self, *args):
+        with self.lock:
+            return method(self, *args)
+    return wrapper
 
 
 def _config_from_params():
@@ -66,6 +78,8 @@ class SlamBridgeNode:
         self.reacquiring = False
         self.map_event = ""
         self.last_tf_stamp = None
+        # Subscriber and timer callbacks run on their own threads and share the state below.
+        self.lock = threading.RLock()
         self.bad_inputs = 0
 
         self.state_pub = rospy.Publisher("slam/state", SlamState, queue_size=10, latch=True)
@@ -107,8 +121,10 @@ class SlamBridgeNode:
         rospy.logerr_throttle(5.0, f"slam_bridge: ignoring {what}")
 
     def _on_wrapper_state(self, msg):
-        if self.tracker.on_wrapper_state(msg.data):
-            self.anchors.expect_new_map()
+        with self.lock:
+            if self.tracker.on_wrapper_state(msg.data):
+                self.anchors.expect_new_map()
+            self._update_state(rospy.Time.now())
 
     def _on_tracked(self, msg):
         self.tracker.on_tracked_points(msg.width * msg.height)
@@ -119,7 +135,16 @@ class SlamBridgeNode:
         except ValueError as exc:
             self._bad_input(f"camera pose: {exc}")
             return
-        self.tracker.on_pose(msg.header.stamp.to_sec())
+        with self.lock:
+            gap = self.tracker.on_pose(msg.header.stamp.to_sec())
+            if gap is not None and self.state == OK:
+                # The timer may have slept through the whole loss on a loaded machine.
+                self._publish_state(LOST, f"no camera pose for {gap:.2f} s", rospy.Time.now())
+                self._lose_tracking()
+                self.state = LOST
+            self._use_pose(msg, t_slam_cam)
+
+    def _use_pose(self, msg, t_slam_cam):
         state, _ = self.tracker.evaluate(rospy.Time.now().to_sec())
         if state != OK:
             return
@@ -155,6 +180,7 @@ class SlamBridgeNode:
             return
         self.t_map_odom = self.t_map_base @ invert(transform_to_matrix(tf.transform))
 
+    @_locked
     def _on_all_points(self, msg):
         try:
             points = cloud_to_points(msg)
@@ -179,6 +205,7 @@ class SlamBridgeNode:
         header.frame_id = self.map_frame
         self.points_pub.publish(points_to_cloud(metric, header))
 
+    @_locked
     def _on_odom(self, msg):
         p = msg.pose.pose.position
         odom_position = np.array([p.x, p.y, p.z])
@@ -200,9 +227,11 @@ class SlamBridgeNode:
     def _current_slam_position(self):
         return self.last_slam_position if self.state == OK else None
 
+    @_locked
     def _on_drone_command(self, msg):
         self.drone_moves.on_command(msg.data, self._current_slam_position())
 
+    @_locked
     def _on_drone_response(self, msg):
         sample = self.drone_moves.on_response(msg.data, self._current_slam_position())
         if sample is not None and self.scale.add(*sample):
@@ -223,14 +252,24 @@ class SlamBridgeNode:
         msg.source = self.scale_source if n else "parameter"
         self.scale_pub.publish(msg)
 
+    def _lose_tracking(self):
+        self.reacquiring = True
+        self.anchors.tracking_lost()
+        self.drone_moves.invalidate()
+        self.last_odom_position = None
+
     def _on_timer(self, _event):
         now = rospy.Time.now()
+        with self.lock:
+            self._update_state(now)
+            self._publish_tf(now)
+
+    def _update_state(self, now):
         state, reason = self.tracker.evaluate(now.to_sec())
         if state != OK and self.state == OK:
-            self.reacquiring = True
-            self.anchors.tracking_lost()
-            self.drone_moves.invalidate()
-            self.last_odom_position = None
+            self._lose_tracking()
+        if state == OK and self.reacquiring:
+            return  # the next pose tells whether this is the old map, an earlier one or a new one
         published = state
         if state == OK and self.new_map_pending:
             published, reason = NEW_MAP, self.map_event
@@ -239,7 +278,6 @@ class SlamBridgeNode:
             self._publish_state(published, reason, now)
         self.state = OK if published == NEW_MAP else state
         self.reason = reason
-        self._publish_tf(now)
 
     def _publish_state(self, state, reason, stamp):
         msg = SlamState()

@@ -1,0 +1,30 @@
+"""The make-test summary counts real test cases once and never hides a rostest failure."""
+import importlib.util
+import os
+
+SPEC = importlib.util.spec_from_file_location(
+    "junit_summary", os.path.join(os.path.dirname(__file__), "..", "junit_summary.py"))
+junit_summary = importlib.util.module_from_spec(SPEC)
+SPEC.loader.exec_module(junit_summary)
+
+HARNESS_OK = ('<testsuite tests="1" errors="0" failures="0">'
+              '<testcase classname="rostest.runner.RosTest" name="testx"/></testsuite>')
+NODE_FAILED = ('<testsuite tests="2"><testcase classname="T" name="a"/>'
+               '<testcase classname="T" name="b"><failure>boom</failure></testcase></testsuite>')
+
+
+def test_rostest_node_failure_counts_even_when_harness_passes(tmp_path):
+    (tmp_path / "rostest-x.xml").write_text(HARNESS_OK)
+    (tmp_path / "rosunit-x.xml").write_text(NODE_FAILED)
+    passed, failed, skipped, broken = junit_summary.collect(str(tmp_path))
+    assert len(passed) == 1 and len(failed) == 1 and not broken
+
+
+def test_unreadable_file_is_a_failure(tmp_path):
+    (tmp_path / "pytest.xml").write_text("<testsuite")
+    assert junit_summary.collect(str(tmp_path))[3]
+
+
+def test_suite_error_without_cases_is_a_failure(tmp_path):
+    (tmp_path / "rostest-y.xml").write_text('<testsuite tests="1" errors="1" failures="0"/>')
+    assert junit_summary.collect(str(tmp_path))[1]

@@ -11,11 +11,20 @@ import math
 
 @dataclasses.dataclass(frozen=True)
 class Step:
-    """One motion in the robot frame: translation (forward_m, left_m) then a turn (ccw_deg)."""
+    """One motion in the robot frame: translation (forward_m, left_m) then a turn (ccw_deg).
+
+    A ``reverse`` step undoes the step before it (whose negated values it carries): it turns
+    first and translates after, so that both together bring the robot back where it was.
+    """
 
     forward_m: float = 0.0
     left_m: float = 0.0
     ccw_deg: float = 0.0
+    reverse: bool = False
+
+    def undo(self):
+        """The reverse step of this one."""
+        return Step(-self.forward_m, -self.left_m, -self.ccw_deg, reverse=True)
 
 
 @dataclasses.dataclass
@@ -44,14 +53,14 @@ def initial_scan(config=None):
     turned = 0.0
     while turned < cfg.full_turn_deg - 1e-9:
         turn = min(cfg.turn_deg, cfg.full_turn_deg - turned)
+        right = Step(left_m=-cfg.side_m, ccw_deg=-cfg.look_deg)
+        left = Step(left_m=cfg.side_m, ccw_deg=cfg.look_deg)
         steps += [
-            Step(forward_m=-cfg.back_m),                       # a
-            Step(left_m=-cfg.side_m, ccw_deg=-cfg.look_deg),   # b: right and look right (cw)
-            Step(left_m=cfg.side_m, ccw_deg=cfg.look_deg),     #    reverse: ccw and go left
-            Step(left_m=cfg.side_m, ccw_deg=cfg.look_deg),     # c: left and look left (ccw)
-            Step(left_m=-cfg.side_m, ccw_deg=-cfg.look_deg),   #    reverse: cw and go right
-            Step(forward_m=cfg.back_m),                        # d: back to the start
-            Step(ccw_deg=-turn),                               # e: look a bit to the right
+            Step(forward_m=-cfg.back_m),     # a: a bit back
+            right, right.undo(),             # b: right and look right (cw); ccw and go left
+            left, left.undo(),               # c: left and look left (ccw); cw and go right
+            Step(forward_m=cfg.back_m),      # d: forward to where the iteration started
+            Step(ccw_deg=-turn),             # e: look a bit to the right
         ]
         turned += turn
     return steps
@@ -65,6 +74,7 @@ def to_tello_commands(steps, min_move_cm=20, max_move_cm=500):
     """Tello SDK commands for Steps; moves are rounded to whole cm within the Tello's limits."""
     commands = []
     for step in steps:
+        moves = []
         for value_m, pos, neg in ((step.forward_m, "forward", "back"),
                                   (step.left_m, "left", "right")):
             cm = int(round(value_m * 100))
@@ -73,18 +83,18 @@ def to_tello_commands(steps, min_move_cm=20, max_move_cm=500):
             if not min_move_cm <= abs(cm) <= max_move_cm:
                 raise ValueError(f"move of {cm} cm is outside the Tello's {min_move_cm}-"
                                  f"{max_move_cm} cm")
-            commands.append(_tello_move(cm, pos, neg))
+            moves.append(_tello_move(cm, pos, neg))
         deg = int(round(step.ccw_deg))
-        if deg:
-            commands.append(f"{'ccw' if deg > 0 else 'cw'} {abs(deg)}")
+        turns = [f"{'ccw' if deg > 0 else 'cw'} {abs(deg)}"] if deg else []
+        commands += turns + moves if step.reverse else moves + turns
     return commands
 
 
 def to_velocity_segments(steps, speed_m_s=0.2, turn_rate_rad_s=0.5):
     """(linear_m_s, angular_rad_s, duration_s) segments for a unicycle executing Steps.
 
-    A unicycle cannot move sideways: a sideways step becomes an arc that ends displaced to that
-    side with the step's heading change, so translation and rotation stay mixed as the seed wants.
+    A unicycle cannot move sideways: a sideways step becomes an arc of the step's length with the
+    step's heading change, so translation and rotation stay mixed as the seed wants.
     """
     segments = []
     for step in steps:
@@ -92,11 +102,11 @@ def to_velocity_segments(steps, speed_m_s=0.2, turn_rate_rad_s=0.5):
             segments.append((math.copysign(speed_m_s, step.forward_m), 0.0,
                              abs(step.forward_m) / speed_m_s))
         if step.left_m:
-            # Arc through the sideways distance: drive backwards if the turn and side disagree.
+            # An arc of the step's length that turns by the step's angle; its reverse step drives
+            # the same arc backwards.
             angle = math.radians(step.ccw_deg) or math.copysign(0.3, step.left_m)
-            length = abs(step.left_m) / max(abs(math.sin(angle)), 0.3)
-            duration = length / speed_m_s
-            direction = 1.0 if (angle > 0) == (step.left_m > 0) else -1.0
+            duration = abs(step.left_m) / speed_m_s
+            direction = -1.0 if step.reverse else 1.0
             segments.append((direction * speed_m_s, angle / duration, duration))
         elif step.ccw_deg:
             angle = math.radians(step.ccw_deg)

@@ -19,7 +19,7 @@ def test_initial_scan_turns_a_full_circle_and_returns_each_iteration():
 
 def test_tello_commands_within_limits():
     commands = to_tello_commands(initial_scan())
-    assert commands[:3] == ["back 30", "right 30", "cw 20"]
+    assert commands[:5] == ["back 30", "right 30", "cw 20", "ccw 20", "left 30"]
     for c in commands:
         verb, value = c.split()
         assert verb in {"forward", "back", "left", "right", "cw", "ccw"}
@@ -36,7 +36,7 @@ def test_velocity_segments_reproduce_the_steps_on_a_unicycle():
             x += v * math.cos(th) * duration / n
             y += v * math.sin(th) * duration / n
             th += w * duration / n
-    assert np.hypot(x, y) < 0.1
+    assert np.hypot(x, y) < 0.02
     assert math.remainder(th, 2 * math.pi) == pytest.approx(0.0, abs=1e-6)
 
 

@@ -6,9 +6,11 @@ export PATH := /usr/bin:/bin:/usr/sbin:/sbin:$(PATH)
 export PYTHONDONTWRITEBYTECODE := 1
 
 ROOT := $(CURDIR)
-# The workspace links back to this directory; roslaunch's resource search skips dot-directories,
-# which keeps it from walking that link in circles.
-WS := $(ROOT)/build/.ws
+WS := $(ROOT)/build/ws
+# The workspace's package directory links to every top-level entry except the build outputs: a
+# link to the repository itself would contain the workspace, and roslaunch's and rosrun's searches
+# of the package directory would walk that loop.
+PKG_ENTRIES := $(filter-out build demo_output,$(wildcard *))
 RESULTS := $(ROOT)/build/test_results
 DEMO_OUT ?= $(ROOT)/demo_output
 WORLD ?= one_room
@@ -40,8 +42,10 @@ setup:
 	fi
 
 build: setup
-	@mkdir -p $(WS)/src
-	@ln -sfn $(ROOT) $(WS)/src/sparse_nav
+	@[ ! -L $(WS)/src/sparse_nav ] || rm $(WS)/src/sparse_nav
+	@mkdir -p $(WS)/src/sparse_nav
+	@find $(WS)/src/sparse_nav -maxdepth 1 -xtype l -delete
+	@for entry in $(PKG_ENTRIES); do ln -sfn $(ROOT)/$$entry $(WS)/src/sparse_nav/$$entry; done
 	cd $(WS) && catkin_make -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release \
 	  -DCATKIN_ENABLE_TESTING=ON -j2 > $(ROOT)/build/catkin_make.log 2>&1 \
 	  || { tail -n 60 $(ROOT)/build/catkin_make.log; exit 1; }

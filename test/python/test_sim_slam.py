@@ -345,3 +345,20 @@ def _segment_distances_many(points, seg):
     a, b = seg[:2], seg[2:]
     t = np.clip((points - a) @ (b - a) / np.dot(b - a, b - a), 0.0, 1.0)
     return np.linalg.norm(points - (a + t[:, None] * (b - a)), axis=1)
+
+
+def test_forced_loss_blinds_the_camera_for_its_duration():
+    """With force_loss_duration_s the loss lasts: no relocalisation or new map while blind."""
+    from sparse_nav.sim import SimConfig, Simulator, load_world
+    sim = Simulator(load_world("one_room"), SimConfig(robot="drone", force_loss_at_s=[6.0],
+                                                      force_loss_duration_s=2.0))
+    for command in ["takeoff", "back 50", "forward 50", "back 50", "forward 50"]:
+        sim.drone_command(command)
+    states = []
+    while sim.time_s < 10.0:
+        sim.step(0.02)
+        out = sim.slam_output()
+        if out is not None and (not states or states[-1][0] != out.stamp_s):
+            states.append((out.stamp_s, out.state))
+    blind = [state for stamp, state in states if 6.05 < stamp < 7.95]
+    assert blind and all(state == 4 for state in blind), "LOST for the whole blind period"

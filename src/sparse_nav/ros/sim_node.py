@@ -35,6 +35,8 @@ class SimNode:
         cfg.seed = int(rospy.get_param("~seed", cfg.seed))
         cfg.force_loss_at_s = [float(t) for t in rospy.get_param("~force_loss_at_s",
                                                                  list(cfg.force_loss_at_s))]
+        cfg.force_loss_duration_s = float(rospy.get_param("~force_loss_duration_s",
+                                                          cfg.force_loss_duration_s))
         if cfg.robot not in ("ground", "drone"):
             raise ValueError(f"~robot must be 'ground' or 'drone', got {cfg.robot!r}")
         self.sim = Simulator(self.world, cfg)

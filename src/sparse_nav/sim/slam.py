@@ -175,6 +175,7 @@ class MonocularSlam:
         self._lost_since_s = None
         self._lost_frames = 0
         self._pending_losses = sorted(float(t) for t in config.force_loss_at_s)
+        self._blind_until_s = -math.inf
         self.tracking_losses = 0
 
     # -- ground truth -------------------------------------------------------------------------
@@ -208,10 +209,14 @@ class MonocularSlam:
 
         if self.state == TrackingState.NO_IMAGES_YET:
             self.state = TrackingState.NOT_INITIALIZED
+        if forced:
+            # A forced loss blinds the camera for a while (covered lens, motion blur), so that the
+            # loss is seen by every consumer rather than relocalised within a frame or two.
+            self._blind_until_s = stamp_s + self.cfg.force_loss_duration_s
         if forced and self.state in (TrackingState.OK, TrackingState.RECENTLY_LOST):
             return self._enter_lost(stamp_s)
-        if forced and self.state == TrackingState.NOT_INITIALIZED:
-            self._reference = None  # a forced loss while initialising restarts initialisation
+        if stamp_s < self._blind_until_s:
+            self._reference = None  # nothing to match while blind: initialisation restarts
             return self._output(stamp_s, TrackingState.LOST)
 
         if self.state == TrackingState.NOT_INITIALIZED:

@@ -3,6 +3,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
+import matplotlib.transforms  # noqa: E402
 import numpy as np  # noqa: E402
 
 
@@ -36,6 +37,42 @@ def plot_summary(path, world, points, true_path, estimated_path, title=""):
     handles, labels = ax.get_legend_handles_labels()
     unique = dict(zip(labels, handles))
     ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=8)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def plot_grid(path, world, cells, resolution_m, origin_xy, t_truth_map, title=""):
+    """Writes a PNG of an occupancy grid drawn in the world's (ground truth) frame.
+
+    cells: (rows, cols) int8, row 0 at the grid's lowest y, 100 occupied / 0 free / -1 unknown;
+    origin_xy: the grid origin in its own (map) frame; t_truth_map: 4x4 map -> world transform.
+    Free cells are light, occupied dark, unknown transparent; true walls are drawn over them.
+    """
+    rows, cols = cells.shape
+    image = np.full((rows, cols, 4), 0.0)
+    image[cells == 0] = (0.85, 0.95, 0.85, 1.0)
+    image[cells == 100] = (0.1, 0.1, 0.1, 1.0)
+    yaw = np.arctan2(t_truth_map[1, 0], t_truth_map[0, 0])
+    transform = (matplotlib.transforms.Affine2D().rotate(yaw)
+                 .translate(t_truth_map[0, 3], t_truth_map[1, 3]))
+    fig, ax = plt.subplots(figsize=(8, 8), dpi=100)
+    extent = (origin_xy[0], origin_xy[0] + cols * resolution_m,
+              origin_xy[1], origin_xy[1] + rows * resolution_m)
+    artist = ax.imshow(image, origin="lower", extent=extent, interpolation="nearest")
+    artist.set_transform(transform + ax.transData)
+    for x1, y1, x2, y2 in world.wall_segments():
+        ax.plot([x1, x2], [y1, y2], color="red", linewidth=1, alpha=0.8)
+    for exit_ in world.exits:
+        ax.scatter([exit_["x"]], [exit_["y"]], s=200, marker="*", color="green")
+    xmin, ymin, xmax, ymax = world.bounds()
+    ax.set_xlim(xmin - 1.0, xmax + 1.0)
+    ax.set_ylim(ymin - 1.0, ymax + 1.0)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(title + " — grid: free light, occupied dark; true walls red")
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(path)

@@ -7,12 +7,16 @@ import yaml
 
 ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
 NODES = {"sim": "src/sparse_nav/ros/sim_node.py",
-         "slam_bridge": "src/sparse_nav/ros/slam_bridge_node.py"}
+         "slam_bridge": "src/sparse_nav/ros/slam_bridge_node.py",
+         "cloud_filter": "src/ros/cloud_filter_nodelet.cpp",
+         "ground_mapper": "src/ros/ground_mapper_nodelet.cpp",
+         "grid_builder": "src/ros/grid_builder_nodelet.cpp"}
 
 
 def params_read_by(source):
     text = open(os.path.join(ROOT, source)).read()
     keys = set(re.findall(r'get_param\(\s*"~(\w+)"', text))
+    keys |= set(re.findall(r'loadParam\(pnh, "(\w+)"', text))
     # slam_bridge reads its BridgeConfig fields in a loop over their names.
     for block in re.findall(r'for field in \(([^)]*)\)', text):
         keys |= set(re.findall(r'"(\w+)"', block))

@@ -13,17 +13,18 @@ import rosbag
 import rospy
 import tf2_ros
 from geometry_msgs.msg import PoseStamped, Twist
-from nav_msgs.msg import Odometry
+from map_msgs.msg import OccupancyGridUpdate
+from nav_msgs.msg import OccupancyGrid, Odometry
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
-from sparse_nav.msg import SlamScale, SlamState
+from sparse_nav.msg import FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, transform_to_matrix
 from sparse_nav.ros.sim_node import load_ros_world
 from sparse_nav.scanning import initial_scan, to_tello_commands, to_velocity_segments
-from sparse_nav.summary import plot_summary
+from sparse_nav.summary import plot_grid, plot_summary
 
 RECORDED = [
     ("orb_slam3/camera_pose", PoseStamped), ("orb_slam3/tracked_points", PointCloud2),
@@ -31,8 +32,27 @@ RECORDED = [
     ("slam/state", SlamState), ("slam/scale", SlamScale), ("slam/points", PointCloud2),
     ("ground_truth/odom", Odometry), ("ground_truth/slam_scale", Float64), ("odom", Odometry),
     ("cmd_vel", Twist), ("tello/command", String), ("tello/response", String),
+    ("map", OccupancyGrid), ("map_updates", OccupancyGridUpdate), ("floor_plane", FloorEstimate),
+    ("cloud/obstacles", PointCloud2),
     ("/tf", TFMessage), ("/tf_static", TFMessage),
 ]
+
+
+def grid_to_array(grid):
+    """(height, width) int8 array of a nav_msgs/OccupancyGrid, row 0 at the lowest y."""
+    return np.asarray(grid.data, dtype=np.int8).reshape(grid.info.height, grid.info.width)
+
+
+def grid_stats(grid):
+    """Size and cell counts of the occupancy grid, or None when none was received."""
+    if grid is None:
+        return None
+    cells = grid_to_array(grid)
+    return {"width": grid.info.width, "height": grid.info.height,
+            "resolution_m": round(grid.info.resolution, 4),
+            "occupied_cells": int(np.count_nonzero(cells == 100)),
+            "free_cells": int(np.count_nonzero(cells == 0)),
+            "unknown_cells": int(np.count_nonzero(cells < 0))}
 
 
 class DemoNode:
@@ -132,16 +152,21 @@ class DemoNode:
 
         world = load_ros_world(self.world_name)
         map_points = np.empty((0, 3))
-        if "slam/points" in latest:
+        t_truth_map = None
+        try:
+            tf = self.tf_buffer.lookup_transform("sim_world", "map", rospy.Time(0))
+            t_truth_map = transform_to_matrix(tf.transform)
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                tf2_ros.ExtrapolationException) as exc:
+            rospy.logwarn("demo: no map -> sim_world alignment, map not drawn: %s", exc)
+        if "slam/points" in latest and t_truth_map is not None:
             map_points = cloud_to_points(latest["slam/points"])
-            try:
-                tf = self.tf_buffer.lookup_transform("sim_world", "map", rospy.Time(0))
-                t = transform_to_matrix(tf.transform)
-                map_points = map_points @ t[:3, :3].T + t[:3, 3]
-            except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
-                    tf2_ros.ExtrapolationException) as exc:
-                rospy.logwarn("demo: no map -> sim_world alignment, points not drawn: %s", exc)
-                map_points = np.empty((0, 3))
+            map_points = map_points @ t_truth_map[:3, :3].T + t_truth_map[:3, 3]
+        grid = latest.get("map")
+        if grid is not None and t_truth_map is not None:
+            plot_grid(os.path.join(self.output_dir, "map.png"), world, grid_to_array(grid),
+                      grid.info.resolution, (grid.info.origin.position.x, grid.info.origin.position.y),
+                      t_truth_map, title=f"{world.name}: occupancy grid (sim_world frame)")
         plot_summary(os.path.join(self.output_dir, "summary.png"), world, map_points,
                      self.true_path, self.estimated_path,
                      title=f"{world.name}, {self.robot}: {len(raw_points)} SLAM points")
@@ -166,6 +191,7 @@ class DemoNode:
                 "true_metres_per_unit": truth,
                 "relative_error": (abs(estimated - truth) / truth) if estimated and truth else None,
             },
+            "map": grid_stats(grid),
             "drone_responses": {"ok": self.responses.count("ok"),
                                 "error": sum(1 for r in self.responses if r.startswith("error"))},
         }

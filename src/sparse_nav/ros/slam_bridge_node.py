@@ -11,7 +11,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Int32, String
 
-from sparse_nav.msg import SlamScale, SlamState
+from sparse_nav.msg import FloorEstimate, SlamScale, SlamState
 from sparse_nav.ros.conversions import (CloudError, cloud_to_points, matrix_to_transform_stamped,
                                         points_to_cloud, pose_to_matrix, transform_to_matrix)
 from sparse_nav.slam_bridge import (LOST, NEW_MAP, OK, STATE_NAMES, BridgeConfig, DroneMoveScale,
@@ -49,9 +49,12 @@ class SlamBridgeNode:
         self.camera_frame = rospy.get_param("~camera_frame", "camera_optical")
         self.publish_odom_tf = rospy.get_param("~publish_odom_tf", True)
         self.scale_source = rospy.get_param("~scale_source", "parameter")
-        if self.scale_source not in ("parameter", "odometry", "drone_commands"):
-            raise ValueError(f"~scale_source must be parameter, odometry or drone_commands, "
-                             f"got {self.scale_source!r}")
+        if self.scale_source not in ("parameter", "odometry", "drone_commands", "camera_height"):
+            raise ValueError(f"~scale_source must be parameter, odometry, drone_commands or "
+                             f"camera_height, got {self.scale_source!r}")
+        self.camera_height_m = float(rospy.get_param("~camera_height_m", 0.0))
+        if self.scale_source == "camera_height" and not self.camera_height_m > 0:
+            raise ValueError("~scale_source camera_height needs ~camera_height_m > 0")
         metres_per_unit = float(rospy.get_param("~metres_per_unit", 1.0))
         if not metres_per_unit > 0:
             raise ValueError(f"~metres_per_unit must be > 0, got {metres_per_unit}")
@@ -93,6 +96,8 @@ class SlamBridgeNode:
         rospy.Subscriber("orb_slam3/tracking_state", Int32, self._on_wrapper_state, queue_size=20)
         if self.scale_source == "odometry":
             rospy.Subscriber("odom", Odometry, self._on_odom, queue_size=50)
+        if self.scale_source == "camera_height":
+            rospy.Subscriber("floor_plane", FloorEstimate, self._on_floor, queue_size=5)
         if self.scale_source == "drone_commands":
             rospy.Subscriber("tello/command", String, self._on_drone_command, queue_size=20)
             rospy.Subscriber("tello/response", String, self._on_drone_response, queue_size=20)
@@ -223,6 +228,19 @@ class SlamBridgeNode:
                 self._apply_scale()
             self.last_odom_position = odom_position
             self._odom_slam_start = self.last_slam_position.copy()
+
+    @_locked
+    def _on_floor(self, msg):
+        """The camera's measured height above the floor against its known height gives the scale."""
+        anchor = self.anchors.current
+        if self.state != OK or anchor is None or not np.isfinite(msg.camera_height):
+            return
+        if msg.header.frame_id != self.map_frame:
+            self._bad_input(f"floor_plane in frame {msg.header.frame_id!r}, expected "
+                            f"{self.map_frame!r}")
+            return
+        if self.scale.add(msg.camera_height / anchor.metres_per_unit, self.camera_height_m):
+            self._apply_scale()
 
     def _current_slam_position(self):
         return self.last_slam_position if self.state == OK else None

@@ -1,0 +1,106 @@
+#ifndef SPARSE_NAV_CORE_GRID_PIPELINE_H
+#define SPARSE_NAV_CORE_GRID_PIPELINE_H
+
+#include <cstddef>
+#include <map>
+#include <memory>
+#include <string>
+
+#include <Eigen/Geometry>
+
+#include "sparse_nav/core/cloud_filters.h"
+#include "sparse_nav/core/floor_plane.h"
+#include "sparse_nav/core/grid_builder.h"
+#include "sparse_nav/core/octree_map.h"
+#include "sparse_nav/core/types.h"
+
+namespace sparse_nav
+{
+/// @brief Configuration of GridPipeline; metric values apply after scaling by metres_per_unit.
+struct GridPipelineConfig
+{
+  /// Metres per SLAM unit. Monocular SLAM has no metric scale: pass the known scale (slam/scale,
+  /// camera height, known motions); 1 treats SLAM units as metres.
+  double metres_per_unit = 1.0;
+  PointGuardConfig guard;
+  DensityFilterConfig density;
+  bool voxel_enabled = true;
+  VoxelFilterConfig voxel;
+  FloorDetectorConfig floor;
+  /// Keep the first floor found for later updates (a moving floor would shift the whole map).
+  bool keep_floor = true;
+  bool octree_enabled = true;
+  OctreeMapConfig octree;
+  double floor_clearance_m = 0.15;  ///< map z below which points are floor, not obstacles [m]
+  double ceiling_height_m = 2.2;    ///< map z above which points are ceiling, not obstacles [m]
+  GridBuilderConfig grid;
+
+  /// @brief Validates this and every nested Config; throws std::invalid_argument.
+  void validate() const;
+};
+
+/// @brief Outcome of one GridPipeline::process call.
+struct GridPipelineResult
+{
+  bool ok = false;
+  std::string status;  ///< summary, or what went wrong when !ok
+  std::size_t n_points = 0;
+  PointGuardStats guard;
+  DensityFilterStats density;
+  VoxelFilterStats voxel;
+  FloorResult floor;
+  Eigen::Isometry3d slam_to_map = Eigen::Isometry3d::Identity();  ///< SLAM frame (scaled) -> map
+  OctreeInsertStats octree;
+  std::size_t n_floor_band = 0;    ///< points removed as floor (z < floor_clearance_m)
+  std::size_t n_ceiling_band = 0;  ///< points removed as ceiling (z > ceiling_height_m)
+  std::size_t n_obstacles = 0;
+  GridUpdate grid;
+  std::map<std::string, double> stages_ms;  ///< wall time per stage [ms]
+  double total_ms = 0.0;
+};
+
+/**
+ * @brief The perception chain from SLAM map points to an occupancy grid: guard, scale, density
+ * filter, voxel grid, floor plane, alignment to the z-up map frame, octree with free space
+ * ray-cast from the camera, floor/ceiling band removal, alpha shapes and rasterisation, with
+ * dirty-tile incremental updates. Never throws on bad data; problems are reported in the result.
+ */
+class GridPipeline
+{
+public:
+  explicit GridPipeline(const GridPipelineConfig& config = GridPipelineConfig());
+  ~GridPipeline();
+
+  /**
+   * @param slam_points map points in the SLAM frame [SLAM units]
+   * @param camera_positions camera positions in the SLAM frame [SLAM units]; free-space rays start
+   *        at the nearest one. Empty: the SLAM origin (the first camera of ORB-SLAM) is used.
+   */
+  GridPipelineResult process(const PointList& slam_points, const PointList& camera_positions);
+
+  /// @brief Forgets the floor, the octree and the grid.
+  void reset();
+
+  const OccupancyGrid& grid() const { return builder_.grid(); }
+  const GridBuilder& builder() const { return builder_; }
+  /// @brief The octree, or nullptr when octree_enabled is false.
+  OctreeMap* octree() { return octree_.get(); }
+  bool hasFloor() const { return has_floor_; }
+  const FloorPlane& floor() const { return floor_; }
+  const GridPipelineConfig& config() const { return config_; }
+
+private:
+  GridPipelineConfig config_;
+  PointGuard guard_;
+  DensityFilter density_;
+  VoxelFilter voxel_;
+  FloorDetector floor_detector_;
+  std::unique_ptr<OctreeMap> octree_;
+  GridBuilder builder_;
+  bool has_floor_ = false;
+  FloorPlane floor_;
+};
+
+}  // namespace sparse_nav
+
+#endif  // SPARSE_NAV_CORE_GRID_PIPELINE_H

@@ -1,0 +1,30 @@
+#ifndef SPARSE_NAV_ROS_NODE_UTILS_H
+#define SPARSE_NAV_ROS_NODE_UTILS_H
+
+#include <map>
+#include <string>
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <ros/ros.h>
+
+namespace sparse_nav
+{
+/// @brief Reads a private parameter into `value`, keeping its current value (the Config default).
+template <typename T>
+void loadParam(const ros::NodeHandle& pnh, const std::string& name, T& value)
+{
+  pnh.param(name, value, value);
+}
+
+/// @brief As loadParam for a size_t, read through an int (the parameter server has no unsigned).
+void loadParam(const ros::NodeHandle& pnh, const std::string& name, std::size_t& value);
+
+/// @brief Publishes one DiagnosticStatus named `name` on /diagnostics.
+void publishDiagnostics(ros::Publisher& pub, const std::string& name, bool ok, const std::string& message,
+                        const std::map<std::string, std::string>& values);
+
+/// @brief True for a map file name: 1-64 letters, digits, '_' or '-' (never a path).
+bool isValidMapName(const std::string& name);
+}  // namespace sparse_nav
+
+#endif  // SPARSE_NAV_ROS_NODE_UTILS_H

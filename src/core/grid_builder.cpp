@@ -1,0 +1,534 @@
+#include "sparse_nav/core/grid_builder.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iterator>
+#include <stdexcept>
+#include <tuple>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace sparse_nav
+{
+namespace
+{
+std::int64_t floorDiv(std::int64_t a, std::int64_t b)
+{
+  std::int64_t q = a / b;
+  if ((a % b != 0) && ((a < 0) != (b < 0)))
+  {
+    --q;
+  }
+  return q;
+}
+
+/// Integer Bresenham over every cell from (x0, y0) to (x1, y1), both included.
+template <typename Visit>
+void bresenham(int x0, int y0, int x1, int y1, Visit visit)
+{
+  const int dx = std::abs(x1 - x0);
+  const int dy = -std::abs(y1 - y0);
+  const int sx = x0 < x1 ? 1 : -1;
+  const int sy = y0 < y1 ? 1 : -1;
+  int err = dx + dy;
+  for (;;)
+  {
+    visit(x0, y0);
+    if (x0 == x1 && y0 == y1)
+    {
+      return;
+    }
+    const int e2 = 2 * err;
+    if (e2 >= dy)
+    {
+      err += dy;
+      x0 += sx;
+    }
+    if (e2 <= dx)
+    {
+      err += dx;
+      y0 += sy;
+    }
+  }
+}
+
+cv::Point canonicalA(const cv::Point& a, const cv::Point& b)
+{
+  return (a.x < b.x || (a.x == b.x && a.y < b.y)) ? a : b;
+}
+}  // namespace
+
+// ------------------------------------------------------------------------------------ grid
+
+int OccupancyGrid::colOf(double x_m) const
+{
+  return static_cast<int>(std::floor((x_m - origin_x_m) / resolution_m));
+}
+
+int OccupancyGrid::rowOf(double y_m) const
+{
+  return static_cast<int>(std::floor((y_m - origin_y_m) / resolution_m));
+}
+
+std::size_t OccupancyGrid::count(std::int8_t value) const
+{
+  return static_cast<std::size_t>(std::count(data.begin(), data.end(), value));
+}
+
+bool GridBuilder::Ray::operator<(const Ray& o) const
+{
+  return std::tie(x0, y0, x1, y1) < std::tie(o.x0, o.y0, o.x1, o.y1);
+}
+
+bool GridBuilder::Ray::operator==(const Ray& o) const
+{
+  return x0 == o.x0 && y0 == o.y0 && x1 == o.x1 && y1 == o.y1;
+}
+
+// ---------------------------------------------------------------------------- GridBuilder
+
+void GridBuilderConfig::validate() const
+{
+  if (!(resolution_m > 0.0) || !std::isfinite(resolution_m))
+  {
+    throw std::invalid_argument("GridBuilderConfig: resolution_m must be finite and > 0");
+  }
+  if (tile_size_cells < 4 || tile_size_cells > 4096)
+  {
+    throw std::invalid_argument("GridBuilderConfig: tile_size_cells must be in [4, 4096]");
+  }
+  if (!(padding_m >= 0.0) || !std::isfinite(padding_m))
+  {
+    throw std::invalid_argument("GridBuilderConfig: padding_m must be finite and >= 0");
+  }
+  if (max_cells < 1)
+  {
+    throw std::invalid_argument("GridBuilderConfig: max_cells must be >= 1");
+  }
+  alpha.validate();
+}
+
+GridBuilder::GridBuilder(const GridBuilderConfig& config) : config_(config)
+{
+  config_.validate();
+  reset();
+}
+
+void GridBuilder::reset()
+{
+  grid_ = OccupancyGrid();
+  grid_.resolution_m = config_.resolution_m;
+  cell0_x_ = cell0_y_ = 0;
+  tiles_x_ = tiles_y_ = 0;
+  alpha_m_ = config_.alpha.alpha_m;
+  tile_cells_.clear();
+  rays_.clear();
+  last_shape_ = AlphaShapeResult();
+}
+
+GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<FreeRay>& rays)
+{
+  GridUpdate result;
+  const double res = config_.resolution_m;
+  const int tile = config_.tile_size_cells;
+  // Reject coordinates whose cell index would not fit comfortably in 32 bits.
+  const double limit = 1e9 * res;
+
+  std::vector<std::pair<std::int64_t, std::int64_t>> cells;  // (y, x) absolute
+  cells.reserve(obstacles.size());
+  for (const auto& p : obstacles)
+  {
+    if (!p.allFinite() || std::abs(p.x()) > limit || std::abs(p.y()) > limit)
+    {
+      continue;
+    }
+    cells.emplace_back(static_cast<std::int64_t>(std::floor(p.y() / res)),
+                       static_cast<std::int64_t>(std::floor(p.x() / res)));
+  }
+  std::sort(cells.begin(), cells.end());
+  cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+
+  std::vector<Ray> new_rays;
+  new_rays.reserve(rays.size());
+  for (const auto& r : rays)
+  {
+    if (!r.from.allFinite() || !r.to.allFinite() || r.from.cwiseAbs().maxCoeff() > limit ||
+        r.to.cwiseAbs().maxCoeff() > limit)
+    {
+      continue;
+    }
+    std::int32_t ax = static_cast<std::int32_t>(std::floor(r.from.x() / res));
+    std::int32_t ay = static_cast<std::int32_t>(std::floor(r.from.y() / res));
+    std::int32_t bx = static_cast<std::int32_t>(std::floor(r.to.x() / res));
+    std::int32_t by = static_cast<std::int32_t>(std::floor(r.to.y() / res));
+    if (bx < ax || (bx == ax && by < ay))
+    {
+      std::swap(ax, bx);
+      std::swap(ay, by);
+    }
+    new_rays.push_back(Ray{ ax, ay, bx, by });
+  }
+  std::sort(new_rays.begin(), new_rays.end());
+  new_rays.erase(std::unique(new_rays.begin(), new_rays.end()), new_rays.end());
+  result.n_obstacle_cells = cells.size();
+  result.n_rays = new_rays.size();
+
+  if (cells.empty() && new_rays.empty())
+  {
+    const bool had_grid = !grid_.empty();
+    reset();
+    result.full_rebuild = true;
+    result.status = had_grid ? "no obstacle points and no free rays: the grid was cleared"
+                             : "no obstacle points and no free rays: empty grid";
+    result.alpha_m = alpha_m_;
+    return result;
+  }
+
+  // Extent of the data in absolute cells, padded and snapped outwards to whole tiles.
+  std::int64_t min_x = std::numeric_limits<std::int64_t>::max(), min_y = min_x;
+  std::int64_t max_x = std::numeric_limits<std::int64_t>::lowest(), max_y = max_x;
+  auto extend = [&](std::int64_t x, std::int64_t y) {
+    min_x = std::min(min_x, x);
+    max_x = std::max(max_x, x);
+    min_y = std::min(min_y, y);
+    max_y = std::max(max_y, y);
+  };
+  for (const auto& c : cells)
+  {
+    extend(c.second, c.first);
+  }
+  for (const auto& r : new_rays)
+  {
+    extend(r.x0, r.y0);
+    extend(r.x1, r.y1);
+  }
+  const std::int64_t pad = static_cast<std::int64_t>(std::ceil(config_.padding_m / res));
+  std::int64_t tx0 = floorDiv(min_x - pad, tile), tx1 = floorDiv(max_x + pad, tile);
+  std::int64_t ty0 = floorDiv(min_y - pad, tile), ty1 = floorDiv(max_y + pad, tile);
+
+  bool full = grid_.empty();
+  if (!full)
+  {
+    const std::int64_t cur_tx0 = cell0_x_ / tile, cur_ty0 = cell0_y_ / tile;
+    const std::int64_t cur_tx1 = cur_tx0 + tiles_x_ - 1, cur_ty1 = cur_ty0 + tiles_y_ - 1;
+    if (tx0 < cur_tx0 || ty0 < cur_ty0 || tx1 > cur_tx1 || ty1 > cur_ty1)
+    {
+      full = true;
+      tx0 = std::min(tx0, cur_tx0);
+      ty0 = std::min(ty0, cur_ty0);
+      tx1 = std::max(tx1, cur_tx1);
+      ty1 = std::max(ty1, cur_ty1);
+    }
+    else
+    {
+      tx0 = cur_tx0;
+      ty0 = cur_ty0;
+      tx1 = cur_tx1;
+      ty1 = cur_ty1;
+    }
+  }
+  const double n_cells = static_cast<double>(tx1 - tx0 + 1) * tile * static_cast<double>(ty1 - ty0 + 1) * tile;
+  if (n_cells > static_cast<double>(config_.max_cells))
+  {
+    char buf[200];
+    std::snprintf(buf, sizeof(buf), "the data spans %.0f x %.0f m, which needs %.3g cells (> max_cells %d); grid unchanged",
+                  static_cast<double>(max_x - min_x + 1) * res, static_cast<double>(max_y - min_y + 1) * res, n_cells,
+                  config_.max_cells);
+    result.ok = false;
+    result.status = buf;
+    result.alpha_m = alpha_m_;
+    return result;
+  }
+
+  std::vector<std::uint8_t> write;
+  if (full)
+  {
+    std::vector<std::uint8_t> old_data;
+    tiles_x_ = static_cast<int>(tx1 - tx0 + 1);
+    tiles_y_ = static_cast<int>(ty1 - ty0 + 1);
+    cell0_x_ = tx0 * tile;
+    cell0_y_ = ty0 * tile;
+    grid_.resolution_m = res;
+    grid_.width = tiles_x_ * tile;
+    grid_.height = tiles_y_ * tile;
+    grid_.origin_x_m = static_cast<double>(cell0_x_) * res;
+    grid_.origin_y_m = static_cast<double>(cell0_y_) * res;
+    grid_.data.assign(static_cast<std::size_t>(grid_.width) * grid_.height, OccupancyGrid::kUnknown);
+    if (config_.alpha.auto_alpha)
+    {
+      PointList2D centres;
+      centres.reserve(cells.size());
+      for (const auto& c : cells)
+      {
+        centres.emplace_back((static_cast<double>(c.second) + 0.5) * res, (static_cast<double>(c.first) + 0.5) * res);
+      }
+      alpha_m_ = automaticAlpha(centres, config_.alpha, res);
+    }
+    else
+    {
+      alpha_m_ = config_.alpha.alpha_m;
+    }
+  }
+  const int n_tiles = tiles_x_ * tiles_y_;
+
+  // Obstacle cells per tile, as sorted local ids.
+  std::vector<std::vector<std::uint32_t>> tile_cells(static_cast<std::size_t>(n_tiles));
+  for (const auto& c : cells)
+  {
+    const int col = static_cast<int>(c.second - cell0_x_);
+    const int row = static_cast<int>(c.first - cell0_y_);
+    const int t = (row / tile) * tiles_x_ + col / tile;
+    tile_cells[static_cast<std::size_t>(t)].push_back(static_cast<std::uint32_t>((row % tile) * tile + col % tile));
+  }
+  for (auto& v : tile_cells)
+  {
+    std::sort(v.begin(), v.end());
+  }
+
+  const double alpha_cells = alpha_m_ / res;
+  const int margin = static_cast<int>(std::ceil((2.0 * alpha_cells + 2.0) / tile));
+  write.assign(static_cast<std::size_t>(n_tiles), 0);
+  if (full)
+  {
+    std::fill(write.begin(), write.end(), 1);
+  }
+  else
+  {
+    std::vector<std::uint8_t> dirty_occ(static_cast<std::size_t>(n_tiles), 0);
+    for (int t = 0; t < n_tiles; ++t)
+    {
+      dirty_occ[static_cast<std::size_t>(t)] = tile_cells[static_cast<std::size_t>(t)] != tile_cells_[static_cast<std::size_t>(t)];
+    }
+    for (int ty = 0; ty < tiles_y_; ++ty)
+    {
+      for (int tx = 0; tx < tiles_x_; ++tx)
+      {
+        if (!dirty_occ[static_cast<std::size_t>(ty * tiles_x_ + tx)])
+        {
+          continue;
+        }
+        for (int y = std::max(0, ty - margin); y <= std::min(tiles_y_ - 1, ty + margin); ++y)
+        {
+          for (int x = std::max(0, tx - margin); x <= std::min(tiles_x_ - 1, tx + margin); ++x)
+          {
+            write[static_cast<std::size_t>(y * tiles_x_ + x)] = 1;
+          }
+        }
+      }
+    }
+    std::vector<Ray> changed;
+    std::set_symmetric_difference(rays_.begin(), rays_.end(), new_rays.begin(), new_rays.end(),
+                                  std::back_inserter(changed));
+    for (const auto& r : changed)
+    {
+      bresenham(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
+                static_cast<int>(r.y1 - cell0_y_), [&](int col, int row) {
+                  write[static_cast<std::size_t>((row / tile) * tiles_x_ + col / tile)] = 1;
+                });
+    }
+  }
+  tile_cells_.swap(tile_cells);
+  rays_.swap(new_rays);
+
+  // One window: the bounding box of the tiles to write, plus the alpha-shape context margin.
+  int wx0 = tiles_x_, wy0 = tiles_y_, wx1 = -1, wy1 = -1;
+  for (int ty = 0; ty < tiles_y_; ++ty)
+  {
+    for (int tx = 0; tx < tiles_x_; ++tx)
+    {
+      if (write[static_cast<std::size_t>(ty * tiles_x_ + tx)])
+      {
+        wx0 = std::min(wx0, tx);
+        wx1 = std::max(wx1, tx);
+        wy0 = std::min(wy0, ty);
+        wy1 = std::max(wy1, ty);
+      }
+    }
+  }
+  result.full_rebuild = full;
+  result.alpha_m = alpha_m_;
+  if (wx1 >= 0)
+  {
+    wx0 = std::max(0, wx0 - margin);
+    wy0 = std::max(0, wy0 - margin);
+    wx1 = std::min(tiles_x_ - 1, wx1 + margin);
+    wy1 = std::min(tiles_y_ - 1, wy1 + margin);
+    const Window window{ wx0 * tile, wy0 * tile, (wx1 - wx0 + 1) * tile, (wy1 - wy0 + 1) * tile };
+    const std::vector<std::int8_t> before = grid_.data;
+    recomputeWindow(window, write, alpha_m_, full);
+    int c0 = grid_.width, r0 = grid_.height, c1 = 0, r1 = 0;
+    for (int ty = 0; ty < tiles_y_; ++ty)
+    {
+      for (int tx = 0; tx < tiles_x_; ++tx)
+      {
+        if (!write[static_cast<std::size_t>(ty * tiles_x_ + tx)])
+        {
+          continue;
+        }
+        result.recomputed_tiles.push_back(TileIndex{ tx, ty });
+        bool changed = full;
+        for (int row = ty * tile; row < (ty + 1) * tile && !changed; ++row)
+        {
+          const std::size_t off = static_cast<std::size_t>(row) * grid_.width + static_cast<std::size_t>(tx) * tile;
+          changed = !std::equal(before.begin() + static_cast<std::ptrdiff_t>(off),
+                                before.begin() + static_cast<std::ptrdiff_t>(off + tile),
+                                grid_.data.begin() + static_cast<std::ptrdiff_t>(off));
+        }
+        if (changed)
+        {
+          result.changed_tiles.push_back(TileIndex{ tx, ty });
+          c0 = std::min(c0, tx * tile);
+          r0 = std::min(r0, ty * tile);
+          c1 = std::max(c1, (tx + 1) * tile);
+          r1 = std::max(r1, (ty + 1) * tile);
+        }
+      }
+    }
+    if (!result.changed_tiles.empty())
+    {
+      result.min_col = c0;
+      result.min_row = r0;
+      result.max_col = c1;
+      result.max_row = r1;
+    }
+  }
+  char buf[200];
+  std::snprintf(buf, sizeof(buf), "%s: %zu obstacle cells, %zu rays, %zu/%d tiles recomputed, %zu changed, alpha %.3f m",
+                full ? "full rebuild" : "incremental update", result.n_obstacle_cells, result.n_rays,
+                result.recomputed_tiles.size(), n_tiles, result.changed_tiles.size(), alpha_m_);
+  result.status = buf;
+  return result;
+}
+
+void GridBuilder::recomputeWindow(const Window& window, const std::vector<std::uint8_t>& write, double alpha_m,
+                                  bool keep_shape)
+{
+  const int tile = config_.tile_size_cells;
+  const double res = config_.resolution_m;
+  // Obstacle cell centres inside the window, in window pixel coordinates (one per cell).
+  PointList2D points;
+  cv::Mat occupied = cv::Mat::zeros(window.rows, window.cols, CV_8UC1);
+  for (int ty = window.row0 / tile; ty < (window.row0 + window.rows) / tile; ++ty)
+  {
+    for (int tx = window.col0 / tile; tx < (window.col0 + window.cols) / tile; ++tx)
+    {
+      for (std::uint32_t id : tile_cells_[static_cast<std::size_t>(ty * tiles_x_ + tx)])
+      {
+        const int col = tx * tile + static_cast<int>(id % tile) - window.col0;
+        const int row = ty * tile + static_cast<int>(id / tile) - window.row0;
+        points.emplace_back(col, row);
+        occupied.at<std::uint8_t>(row, col) = 1;
+      }
+    }
+  }
+  const AlphaShapeResult shape = computeAlphaShape(points, alpha_m / res);
+  auto toCv = [](const Eigen::Vector2d& p) {
+    return cv::Point(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
+  };
+  std::vector<std::vector<cv::Point>> polygons;
+  polygons.reserve(shape.rings.size());
+  for (const auto& ring : shape.rings)
+  {
+    std::vector<cv::Point> poly;
+    poly.reserve(ring.size());
+    for (const auto& p : ring)
+    {
+      poly.push_back(toCv(p));
+    }
+    polygons.push_back(std::move(poly));
+  }
+  if (!polygons.empty())
+  {
+    cv::fillPoly(occupied, polygons, cv::Scalar(1), cv::LINE_8);
+  }
+  auto drawEdge = [&](const cv::Point& a, const cv::Point& b) {
+    const cv::Point p = canonicalA(a, b);
+    const cv::Point q = (p == a) ? b : a;
+    bresenham(p.x, p.y, q.x, q.y, [&](int x, int y) { occupied.at<std::uint8_t>(y, x) = 1; });
+  };
+  for (const auto& poly : polygons)
+  {
+    for (std::size_t i = 0; i < poly.size(); ++i)
+    {
+      drawEdge(poly[i], poly[(i + 1) % poly.size()]);
+    }
+  }
+  for (const auto& s : shape.segments)
+  {
+    drawEdge(toCv(s.first), toCv(s.second));
+  }
+
+  // Free cells from the rays that cross the window.
+  cv::Mat free_cells = cv::Mat::zeros(window.rows, window.cols, CV_8UC1);
+  const std::int64_t wx0 = cell0_x_ + window.col0, wy0 = cell0_y_ + window.row0;
+  const std::int64_t wx1 = wx0 + window.cols - 1, wy1 = wy0 + window.rows - 1;
+  for (const auto& r : rays_)
+  {
+    if (std::max<std::int64_t>(r.x0, r.x1) < wx0 || std::min<std::int64_t>(r.x0, r.x1) > wx1 ||
+        std::max<std::int64_t>(r.y0, r.y1) < wy0 || std::min<std::int64_t>(r.y0, r.y1) > wy1)
+    {
+      continue;
+    }
+    bresenham(static_cast<int>(r.x0 - wx0), static_cast<int>(r.y0 - wy0), static_cast<int>(r.x1 - wx0),
+              static_cast<int>(r.y1 - wy0), [&](int x, int y) {
+                if (x >= 0 && y >= 0 && x < window.cols && y < window.rows)
+                {
+                  free_cells.at<std::uint8_t>(y, x) = 1;
+                }
+              });
+  }
+
+  for (int row = 0; row < window.rows; ++row)
+  {
+    const int grow = window.row0 + row;
+    const std::uint8_t* occ_row = occupied.ptr<std::uint8_t>(row);
+    const std::uint8_t* free_row = free_cells.ptr<std::uint8_t>(row);
+    for (int col = 0; col < window.cols; ++col)
+    {
+      const int gcol = window.col0 + col;
+      if (!write[static_cast<std::size_t>((grow / tile) * tiles_x_ + gcol / tile)])
+      {
+        continue;
+      }
+      std::int8_t v = OccupancyGrid::kUnknown;
+      if (occ_row[col])
+      {
+        v = OccupancyGrid::kOccupied;
+      }
+      else if (free_row[col])
+      {
+        v = OccupancyGrid::kFree;
+      }
+      grid_.data[static_cast<std::size_t>(grow) * grid_.width + gcol] = v;
+    }
+  }
+
+  if (keep_shape)
+  {
+    // Back to map metres: pixel (c, r) is the centre of grid cell (col0 + c, row0 + r).
+    last_shape_ = AlphaShapeResult();
+    last_shape_.alpha_m = alpha_m;
+    auto toMap = [&](const Eigen::Vector2d& p) {
+      return Eigen::Vector2d(grid_.origin_x_m + (window.col0 + p.x() + 0.5) * res,
+                             grid_.origin_y_m + (window.row0 + p.y() + 0.5) * res);
+    };
+    for (const auto& ring : shape.rings)
+    {
+      std::vector<Eigen::Vector2d> m;
+      m.reserve(ring.size());
+      for (const auto& p : ring)
+      {
+        m.push_back(toMap(p));
+      }
+      last_shape_.rings.push_back(std::move(m));
+    }
+    for (const auto& s : shape.segments)
+    {
+      last_shape_.segments.emplace_back(toMap(s.first), toMap(s.second));
+    }
+  }
+}
+
+}  // namespace sparse_nav

@@ -1,0 +1,111 @@
+#ifndef SPARSE_NAV_CORE_SPATIAL_HASH_H
+#define SPARSE_NAV_CORE_SPATIAL_HASH_H
+
+// Private helper of sparse_nav_core (not installed): a uniform-grid hash of 3D points.
+
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "sparse_nav/core/types.h"
+
+namespace sparse_nav
+{
+struct CellKey
+{
+  std::int64_t x;
+  std::int64_t y;
+  std::int64_t z;
+  bool operator==(const CellKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+
+struct CellKeyHash
+{
+  std::size_t operator()(const CellKey& k) const
+  {
+    std::uint64_t h = static_cast<std::uint64_t>(k.x) * 0x9E3779B97F4A7C15ULL;
+    h ^= static_cast<std::uint64_t>(k.y) * 0xC2B2AE3D27D4EB4FULL + (h << 6) + (h >> 2);
+    h ^= static_cast<std::uint64_t>(k.z) * 0x165667B19E3779F9ULL + (h << 6) + (h >> 2);
+    return static_cast<std::size_t>(h);
+  }
+};
+
+/// Points bucketed in cubic cells of edge `cell`; a query visits the 27 cells around a point, so
+/// every point within `cell` of the query is visited.
+class SpatialHash3
+{
+public:
+  SpatialHash3(double cell, const PointList& points) : inv_(1.0 / cell)
+  {
+    std::unordered_map<CellKey, std::uint32_t, CellKeyHash> ids;
+    ids.reserve(points.size());
+    std::vector<std::uint32_t> cell_of(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i)
+    {
+      auto it = ids.emplace(key(points[i]), static_cast<std::uint32_t>(ids.size())).first;
+      cell_of[i] = it->second;
+    }
+    start_.assign(ids.size() + 1, 0);
+    for (std::uint32_t c : cell_of)
+    {
+      ++start_[c + 1];
+    }
+    for (std::size_t c = 1; c < start_.size(); ++c)
+    {
+      start_[c] += start_[c - 1];
+    }
+    items_.resize(points.size());
+    std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t i = 0; i < points.size(); ++i)
+    {
+      items_[fill[cell_of[i]]++] = static_cast<std::uint32_t>(i);
+    }
+    ids_.swap(ids);
+  }
+
+  CellKey key(const Eigen::Vector3f& p) const
+  {
+    return CellKey{ static_cast<std::int64_t>(std::floor(p.x() * inv_)),
+                    static_cast<std::int64_t>(std::floor(p.y() * inv_)),
+                    static_cast<std::int64_t>(std::floor(p.z() * inv_)) };
+  }
+
+  /// Calls visit(index) for the points in the 27 cells around p until visit returns false.
+  template <typename Visit>
+  void forEachNear(const Eigen::Vector3f& p, Visit visit) const
+  {
+    const CellKey c = key(p);
+    for (std::int64_t dz = -1; dz <= 1; ++dz)
+    {
+      for (std::int64_t dy = -1; dy <= 1; ++dy)
+      {
+        for (std::int64_t dx = -1; dx <= 1; ++dx)
+        {
+          auto it = ids_.find(CellKey{ c.x + dx, c.y + dy, c.z + dz });
+          if (it == ids_.end())
+          {
+            continue;
+          }
+          for (std::uint32_t k = start_[it->second]; k < start_[it->second + 1]; ++k)
+          {
+            if (!visit(items_[k]))
+            {
+              return;
+            }
+          }
+        }
+      }
+    }
+  }
+
+private:
+  double inv_;
+  std::unordered_map<CellKey, std::uint32_t, CellKeyHash> ids_;
+  std::vector<std::uint32_t> start_;
+  std::vector<std::uint32_t> items_;
+};
+
+}  // namespace sparse_nav
+
+#endif  // SPARSE_NAV_CORE_SPATIAL_HASH_H

@@ -1,0 +1,96 @@
+#include "sparse_nav/ros/cloud_filter_nodelet.h"
+
+#include <chrono>
+#include <exception>
+
+#include "sparse_nav/ros/conversions.h"
+#include "sparse_nav/ros/node_utils.h"
+
+namespace sparse_nav
+{
+void CloudFilterNodelet::onInit()
+{
+  ros::NodeHandle& nh = getNodeHandle();
+  ros::NodeHandle& pnh = getPrivateNodeHandle();
+  loadParam(pnh, "max_abs_coordinate_m", guard_config_.max_abs_coordinate);
+  std::string method = "radius";
+  loadParam(pnh, "density_method", method);
+  density_config_.method = densityMethodFromString(method);
+  loadParam(pnh, "density_radius_m", density_config_.radius_m);
+  loadParam(pnh, "density_min_neighbors", density_config_.min_neighbors);
+  loadParam(pnh, "ipcl_rounds", density_config_.ipcl_rounds);
+  loadParam(pnh, "voxel_enabled", voxel_enabled_);
+  loadParam(pnh, "leaf_size_m", voxel_config_.leaf_size_m);
+  loadParam(pnh, "max_points", max_points_);
+  guard_config_.validate();
+  density_config_.validate();
+  voxel_config_.validate();
+
+  pub_ = nh.advertise<sensor_msgs::PointCloud2>("cloud/filtered", 2);
+  diag_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
+  sub_ = nh.subscribe("slam/points", 2, &CloudFilterNodelet::onCloud, this);
+  NODELET_INFO("cloud_filter: density %s (radius %.3f m, >= %d neighbours), leaf %.3f m", method.c_str(),
+               density_config_.radius_m, density_config_.min_neighbors, voxel_config_.leaf_size_m);
+}
+
+void CloudFilterNodelet::diagnose(bool ok, const std::string& message)
+{
+  publishDiagnostics(diag_pub_, "cloud_filter", ok, message,
+                     { { "points_in", std::to_string(n_in_) },
+                       { "points_out", std::to_string(n_out_) },
+                       { "clouds_rejected", std::to_string(n_rejected_) },
+                       { "last_ms", std::to_string(last_ms_) } });
+}
+
+void CloudFilterNodelet::onCloud(const sensor_msgs::PointCloud2ConstPtr& msg)
+{
+  // An exception escaping a nodelet callback takes the whole manager (and SLAM) down.
+  try
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto start = std::chrono::steady_clock::now();
+    const std::size_t n = static_cast<std::size_t>(msg->width) * msg->height;
+    if (n > static_cast<std::size_t>(max_points_))
+    {
+      ++n_rejected_;
+      NODELET_ERROR_THROTTLE(5.0, "cloud_filter: refusing a cloud of %zu points (max_points %d); keeping "
+                                  "the last output", n, max_points_);
+      diagnose(false, "cloud too large");
+      return;
+    }
+    PointList points;
+    std::string error;
+    if (!cloudToPoints(*msg, points, &error))
+    {
+      ++n_rejected_;
+      NODELET_ERROR_THROTTLE(5.0, "cloud_filter: %s; keeping the last output", error.c_str());
+      diagnose(false, error);
+      return;
+    }
+    PointGuardStats guard_stats;
+    points = PointGuard(guard_config_).apply(points, &guard_stats);
+    if (guard_stats.n_non_finite + guard_stats.n_out_of_range > 0)
+      NODELET_WARN_THROTTLE(5.0, "cloud_filter: dropped %zu non-finite and %zu out-of-range points",
+                            guard_stats.n_non_finite, guard_stats.n_out_of_range);
+    if (points.empty())
+    {
+      ++n_rejected_;
+      NODELET_WARN_THROTTLE(5.0, "cloud_filter: no usable point in the cloud; keeping the last output");
+      diagnose(false, "empty cloud");
+      return;
+    }
+    points = DensityFilter(density_config_).apply(points);
+    if (voxel_enabled_)
+      points = VoxelFilter(voxel_config_).apply(points);
+    n_in_ = n;
+    n_out_ = points.size();
+    last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    pub_.publish(pointsToCloud(points, msg->header));
+    diagnose(true, "ok");
+  }
+  catch (const std::exception& e)
+  {
+    NODELET_ERROR_THROTTLE(5.0, "cloud_filter: %s; keeping the last output", e.what());
+  }
+}
+}  // namespace sparse_nav

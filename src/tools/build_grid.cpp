@@ -1,0 +1,391 @@
+// build_grid: run the sparse_nav perception core on a point file and write a map_server map.
+//
+//   build_grid FILE --out PREFIX [--up-axis -y] [--resolution R] [--scale METRES_PER_UNIT] [--json] ...
+//
+// Writes PREFIX.pgm + PREFIX.yaml (map_server format) and PREFIX.png (a picture with the alpha
+// polygons). Exit status: 0 ok, 2 bad input or no floor, 1 cannot write the outputs.
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "sparse_nav/core/grid_pipeline.h"
+#include "sparse_nav/core/point_file.h"
+
+namespace
+{
+const char* const kUsage =
+    "usage: build_grid FILE --out PREFIX [options]\n"
+    "\n"
+    "Reads a point file (CSV/TXT/XYZ columns, PLY ascii/binary, PCD), finds the floor, and writes\n"
+    "PREFIX.pgm + PREFIX.yaml (map_server format) and PREFIX.png.\n"
+    "\n"
+    "options:\n"
+    "  --up-axis AXIS          nominal up axis of the file: x, -x, y, -y, z, -z (default -y: raw\n"
+    "                          ORB-SLAM worlds are the first camera's optical frame, y down)\n"
+    "  --resolution R          grid cell size in metres (default 0.05)\n"
+    "  --scale S               metres per SLAM unit (default 1). Monocular ORB-SLAM has no metric\n"
+    "                          scale: without S every metric option below is in SLAM units\n"
+    "  --max-tilt-deg D        largest floor tilt from the up axis (default 15)\n"
+    "  --floor-clearance M     map z below which points are floor (default 0.15)\n"
+    "  --ceiling-height M      map z above which points are ceiling (default 2.2)\n"
+    "  --density METHOD        none, radius or ipcl (default radius)\n"
+    "  --density-radius M      density filter radius (default 0.1)\n"
+    "  --min-neighbors K       density filter neighbour count (default 3)\n"
+    "  --leaf M                voxel leaf size, 0 disables the voxel grid (default 0.02)\n"
+    "  --alpha M               alpha-shape radius in metres (default 0.25)\n"
+    "  --auto-alpha            choose alpha from the nearest-neighbour spacing\n"
+    "  --no-octree             skip the OctoMap octree\n"
+    "  --save-octree           also write PREFIX.bt\n"
+    "  --json                  print {\"n_points\", \"stages_ms\", \"total_ms\", floor, grid} on stdout\n";
+
+struct Args
+{
+  std::string file;
+  std::string out;
+  bool json = false;
+  bool save_octree = false;
+  std::string up_axis = "-y";
+  sparse_nav::GridPipelineConfig config;
+};
+
+double number(const std::string& flag, const std::string& value)
+{
+  char* end = nullptr;
+  const double v = std::strtod(value.c_str(), &end);
+  if (value.empty() || end != value.c_str() + value.size() || !std::isfinite(v))
+  {
+    throw std::invalid_argument(flag + " needs a number, got '" + value + "'");
+  }
+  return v;
+}
+
+Args parseArgs(int argc, char** argv)
+{
+  Args a;
+  a.config.grid.resolution_m = 0.05;
+  for (int i = 1; i < argc; ++i)
+  {
+    const std::string arg = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc)
+      {
+        throw std::invalid_argument(arg + " needs a value");
+      }
+      return argv[++i];
+    };
+    if (arg == "-h" || arg == "--help")
+    {
+      std::cout << kUsage;
+      std::exit(0);
+    }
+    else if (arg == "--out")
+      a.out = value();
+    else if (arg == "--json")
+      a.json = true;
+    else if (arg == "--up-axis")
+      a.up_axis = value();
+    else if (arg == "--resolution")
+    {
+      a.config.grid.resolution_m = number(arg, value());
+      a.config.octree.resolution_m = a.config.grid.resolution_m;
+    }
+    else if (arg == "--scale")
+      a.config.metres_per_unit = number(arg, value());
+    else if (arg == "--max-tilt-deg")
+      a.config.floor.max_tilt_deg = number(arg, value());
+    else if (arg == "--floor-clearance")
+      a.config.floor_clearance_m = number(arg, value());
+    else if (arg == "--ceiling-height")
+      a.config.ceiling_height_m = number(arg, value());
+    else if (arg == "--density")
+      a.config.density.method = sparse_nav::densityMethodFromString(value());
+    else if (arg == "--density-radius")
+      a.config.density.radius_m = number(arg, value());
+    else if (arg == "--min-neighbors")
+      a.config.density.min_neighbors = static_cast<int>(number(arg, value()));
+    else if (arg == "--leaf")
+    {
+      const double leaf = number(arg, value());
+      a.config.voxel_enabled = leaf > 0.0;
+      if (leaf > 0.0)
+        a.config.voxel.leaf_size_m = leaf;
+    }
+    else if (arg == "--alpha")
+      a.config.grid.alpha.alpha_m = number(arg, value());
+    else if (arg == "--auto-alpha")
+      a.config.grid.alpha.auto_alpha = true;
+    else if (arg == "--no-octree")
+      a.config.octree_enabled = false;
+    else if (arg == "--save-octree")
+      a.save_octree = true;
+    else if (!arg.empty() && arg[0] == '-' && arg.size() > 1)
+      throw std::invalid_argument("unknown option " + arg);
+    else if (a.file.empty())
+      a.file = arg;
+    else
+      throw std::invalid_argument("more than one input file given ('" + a.file + "' and '" + arg + "')");
+  }
+  if (a.file.empty())
+  {
+    throw std::invalid_argument("no input FILE given");
+  }
+  if (a.out.empty())
+  {
+    throw std::invalid_argument("--out PREFIX is required");
+  }
+  a.config.floor.up_axis = sparse_nav::axisFromString(a.up_axis);
+  a.config.validate();
+  return a;
+}
+
+std::string jsonString(const std::string& s)
+{
+  std::string out = "\"";
+  for (char c : s)
+  {
+    if (c == '"' || c == '\\')
+    {
+      out += '\\';
+      out += c;
+    }
+    else if (static_cast<unsigned char>(c) < 0x20)
+    {
+      char buf[8];
+      std::snprintf(buf, sizeof(buf), "\\u%04x", c);
+      out += buf;
+    }
+    else
+    {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+std::string baseName(const std::string& path)
+{
+  const auto slash = path.find_last_of('/');
+  return slash == std::string::npos ? path : path.substr(slash + 1);
+}
+
+/// Grid rows run up in y; images run down: row 0 of the image is the grid's last row.
+cv::Mat toPgm(const sparse_nav::OccupancyGrid& grid)
+{
+  cv::Mat img(grid.height, grid.width, CV_8UC1);
+  for (int row = 0; row < grid.height; ++row)
+  {
+    std::uint8_t* out = img.ptr<std::uint8_t>(grid.height - 1 - row);
+    for (int col = 0; col < grid.width; ++col)
+    {
+      const std::int8_t v = grid.at(col, row);
+      out[col] = v == sparse_nav::OccupancyGrid::kOccupied ? 0 : v == sparse_nav::OccupancyGrid::kFree ? 254 : 205;
+    }
+  }
+  return img;
+}
+
+bool writePgm(const std::string& path, const cv::Mat& img)
+{
+  std::ofstream out(path.c_str(), std::ios_base::binary);
+  out << "P5\n" << img.cols << " " << img.rows << "\n255\n";
+  for (int r = 0; r < img.rows; ++r)
+  {
+    out.write(reinterpret_cast<const char*>(img.ptr<std::uint8_t>(r)), img.cols);
+  }
+  return out.good();
+}
+
+cv::Mat picture(const sparse_nav::OccupancyGrid& grid, const sparse_nav::AlphaShapeResult& shape,
+                const Eigen::Vector3d& camera)
+{
+  const int scale = std::max(1, std::min(8, 800 / std::max(1, std::max(grid.width, grid.height))));
+  cv::Mat grey = toPgm(grid);
+  cv::Mat colour;
+  cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
+  cv::resize(colour, colour, cv::Size(), scale, scale, cv::INTER_NEAREST);
+  auto px = [&](const Eigen::Vector2d& p) {
+    const double c = (p.x() - grid.origin_x_m) / grid.resolution_m;
+    const double r = (p.y() - grid.origin_y_m) / grid.resolution_m;
+    return cv::Point(static_cast<int>(c * scale), static_cast<int>((grid.height - r) * scale));
+  };
+  for (const auto& ring : shape.rings)
+  {
+    for (std::size_t i = 0; i < ring.size(); ++i)
+    {
+      cv::line(colour, px(ring[i]), px(ring[(i + 1) % ring.size()]), cv::Scalar(40, 40, 220), 1, cv::LINE_AA);
+    }
+  }
+  for (const auto& s : shape.segments)
+  {
+    cv::line(colour, px(s.first), px(s.second), cv::Scalar(40, 160, 220), 1, cv::LINE_AA);
+  }
+  cv::circle(colour, px(camera.head<2>()), std::max(3, scale * 2), cv::Scalar(200, 120, 0), -1, cv::LINE_AA);
+  return colour;
+}
+}  // namespace
+
+int main(int argc, char** argv)
+{
+  Args args;
+  try
+  {
+    args = parseArgs(argc, argv);
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "build_grid: " << e.what() << "\n\n" << kUsage;
+    return 2;
+  }
+
+  const auto t_read = std::chrono::steady_clock::now();
+  const sparse_nav::PointFileResult file = sparse_nav::readPointFile(args.file);
+  const double read_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_read).count();
+  if (!file.ok)
+  {
+    std::cerr << "build_grid: " << file.error << "\n";
+    return 2;
+  }
+  if (file.n_non_finite > 0)
+  {
+    std::cerr << "build_grid: warning: " << file.n_non_finite << " of " << file.n_rows
+              << " rows have a NaN or infinite coordinate and were dropped\n";
+  }
+
+  sparse_nav::GridPipeline pipeline(args.config);
+  sparse_nav::GridPipelineResult result = pipeline.process(file.points, sparse_nav::PointList());
+  result.stages_ms["read"] = read_ms;
+
+  std::ostringstream json;
+  json.setf(std::ios::fixed);
+  json.precision(3);
+  auto writeJsonHead = [&]() {
+    json << "{\"file\": " << jsonString(args.file) << ", \"n_points\": " << file.points.size()
+         << ", \"n_non_finite\": " << file.n_non_finite << ", \"stages_ms\": {";
+    bool first = true;
+    double total = 0.0;
+    for (const auto& kv : result.stages_ms)
+    {
+      json << (first ? "" : ", ") << jsonString(kv.first) << ": " << kv.second;
+      total += kv.second;
+      first = false;
+    }
+    json << "}, \"total_ms\": " << total;
+    const auto& f = result.floor;
+    json << ", \"floor\": {\"found\": " << (f.found ? "true" : "false");
+    if (f.found)
+    {
+      json << ", \"tilt_deg\": " << f.plane.tilt_deg << ", \"normal\": [" << f.plane.normal.x() << ", "
+           << f.plane.normal.y() << ", " << f.plane.normal.z() << "], \"d\": " << f.plane.d
+           << ", \"inliers\": " << f.plane.n_inliers;
+    }
+    else
+    {
+      json << ", \"reason\": " << jsonString(f.reason);
+    }
+    json << "}";
+  };
+
+  if (!result.ok)
+  {
+    std::string message = result.status;
+    if (!result.floor.found && !result.floor.reason.empty())
+    {
+      char buf[400];
+      const double tilt = result.floor.best_plane_tilt_deg;
+      if (std::isfinite(tilt))
+      {
+        std::snprintf(buf, sizeof(buf),
+                      "no floor plane within %.0f deg of the up axis %s; the best-supported floor-like plane is "
+                      "tilted %.1f deg: pass --max-tilt-deg or --up-axis",
+                      args.config.floor.max_tilt_deg, args.up_axis.c_str(), tilt);
+      }
+      else
+      {
+        std::snprintf(buf, sizeof(buf),
+                      "no floor plane within %.0f deg of the up axis %s (%s): check --up-axis",
+                      args.config.floor.max_tilt_deg, args.up_axis.c_str(), result.floor.reason.c_str());
+      }
+      message = buf;
+    }
+    std::cerr << "build_grid: " << args.file << ": " << message << "\n";
+    if (args.json)
+    {
+      writeJsonHead();
+      json << ", \"error\": " << jsonString(message) << "}";
+      std::cout << json.str() << std::endl;
+    }
+    return 2;
+  }
+
+  const auto t_write = std::chrono::steady_clock::now();
+  const sparse_nav::OccupancyGrid& grid = pipeline.grid();
+  const std::string pgm = args.out + ".pgm", yaml = args.out + ".yaml", png = args.out + ".png";
+  bool written = writePgm(pgm, toPgm(grid));
+  {
+    std::ofstream y(yaml.c_str());
+    char origin[128];
+    std::snprintf(origin, sizeof(origin), "[%.6f, %.6f, 0.0]", grid.origin_x_m, grid.origin_y_m);
+    y << "image: " << baseName(pgm) << "\nresolution: " << grid.resolution_m << "\norigin: " << origin
+      << "\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
+    written = written && y.good();
+  }
+  try
+  {
+    const Eigen::Vector3d camera = result.slam_to_map * Eigen::Vector3d::Zero();
+    written = written && cv::imwrite(png, picture(grid, pipeline.builder().lastShape(), camera));
+  }
+  catch (const cv::Exception& e)
+  {
+    std::cerr << "build_grid: " << png << ": " << e.what() << "\n";
+    written = false;
+  }
+  if (args.save_octree && pipeline.octree())
+  {
+    const sparse_nav::IoStatus st = pipeline.octree()->save(args.out + ".bt");
+    if (!st.ok)
+    {
+      std::cerr << "build_grid: " << st.message << "\n";
+      written = false;
+    }
+  }
+  result.stages_ms["write"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_write).count();
+  if (!written)
+  {
+    std::cerr << "build_grid: could not write the outputs " << args.out << ".{pgm,yaml,png}\n";
+    return 1;
+  }
+  if (args.json)
+  {
+    writeJsonHead();
+    json << ", \"grid\": {\"width\": " << grid.width << ", \"height\": " << grid.height
+         << ", \"resolution\": " << grid.resolution_m << ", \"origin\": [" << grid.origin_x_m << ", " << grid.origin_y_m
+         << "], \"occupied\": " << grid.count(sparse_nav::OccupancyGrid::kOccupied)
+         << ", \"free\": " << grid.count(sparse_nav::OccupancyGrid::kFree)
+         << ", \"unknown\": " << grid.count(sparse_nav::OccupancyGrid::kUnknown) << ", \"alpha_m\": " << result.grid.alpha_m
+         << ", \"polygons\": " << pipeline.builder().lastShape().rings.size() << "}";
+    json << ", \"filtered\": {\"guard_out\": " << result.guard.n_out << ", \"density_out\": " << result.density.n_out
+         << ", \"voxel_out\": " << result.voxel.n_out << ", \"obstacles\": " << result.n_obstacles
+         << ", \"floor_band\": " << result.n_floor_band << ", \"ceiling_band\": " << result.n_ceiling_band << "}";
+    json << ", \"outputs\": [" << jsonString(pgm) << ", " << jsonString(yaml) << ", " << jsonString(png) << "]}";
+    std::cout << json.str() << std::endl;
+  }
+  else
+  {
+    std::cout << "build_grid: " << args.file << ": " << result.status << "\n  wrote " << pgm << ", " << yaml << ", "
+              << png << "\n";
+  }
+  return 0;
+}

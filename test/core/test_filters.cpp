@@ -1,0 +1,196 @@
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+
+#include "sparse_nav/core/cloud_filters.h"
+#include "synthetic.h"
+
+using sparse_nav::DensityFilter;
+using sparse_nav::DensityFilterConfig;
+using sparse_nav::DensityMethod;
+using sparse_nav::PointGuard;
+using sparse_nav::PointGuardConfig;
+using sparse_nav::PointGuardStats;
+using sparse_nav::PointList;
+using sparse_nav::VoxelFilter;
+using sparse_nav::VoxelFilterConfig;
+using sparse_nav::VoxelFilterStats;
+
+TEST(PointGuard, DropsNonFiniteAndFarPointsAndCountsThem)
+{
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  PointList in{ { 1, 2, 3 }, { nan, 0, 0 }, { 0, inf, 0 }, { 0, 0, -inf }, { 1e9f, 0, 0 }, { 0, -1e9f, 0 },
+                { 9999, -9999, 0 } };
+  PointGuardStats stats;
+  const PointList out = PointGuard().apply(in, &stats);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(stats.n_in, 7u);
+  EXPECT_EQ(stats.n_non_finite, 3u);
+  EXPECT_EQ(stats.n_out_of_range, 2u);
+  EXPECT_EQ(stats.n_out, 2u);
+  EXPECT_FLOAT_EQ(out[0].x(), 1.0f);
+  EXPECT_FLOAT_EQ(out[1].x(), 9999.0f);
+}
+
+TEST(PointGuard, EmptyCloudGivesEmptyResult)
+{
+  PointGuardStats stats;
+  EXPECT_TRUE(PointGuard().apply(PointList(), &stats).empty());
+  EXPECT_EQ(stats.n_in, 0u);
+}
+
+TEST(Configs, ValidateRejectsBadValues)
+{
+  PointGuardConfig g;
+  g.max_abs_coordinate = -1;
+  EXPECT_THROW(g.validate(), std::invalid_argument);
+  DensityFilterConfig d;
+  d.radius_m = 0;
+  EXPECT_THROW(d.validate(), std::invalid_argument);
+  d = DensityFilterConfig();
+  d.ipcl_rounds = 0;
+  EXPECT_THROW(DensityFilter{ d }, std::invalid_argument);
+  VoxelFilterConfig v;
+  v.leaf_size_m = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(v.validate(), std::invalid_argument);
+  EXPECT_THROW(sparse_nav::densityMethodFromString("median"), std::invalid_argument);
+}
+
+namespace
+{
+/// A dense 1 m x 1 m patch (5 cm spacing) plus isolated points far from it and from each other.
+PointList denseWithIsolated(std::size_t* n_dense)
+{
+  PointList pts;
+  for (int i = 0; i < 20; ++i)
+  {
+    for (int j = 0; j < 20; ++j)
+    {
+      pts.emplace_back(0.05f * i, 0.05f * j, 0.0f);
+    }
+  }
+  *n_dense = pts.size();
+  pts.emplace_back(5.0f, 5.0f, 5.0f);
+  pts.emplace_back(-5.0f, 3.0f, 1.0f);
+  pts.emplace_back(3.0f, -4.0f, 0.0f);
+  return pts;
+}
+}  // namespace
+
+TEST(DensityFilter, IpclRemovesIsolatedPointsAndKeepsDenseOnes)
+{
+  std::size_t n_dense = 0;
+  const PointList pts = denseWithIsolated(&n_dense);
+  DensityFilterConfig cfg;
+  cfg.method = DensityMethod::kIpcl;
+  cfg.radius_m = 0.06;  // the 4 axis neighbours at 5 cm
+  cfg.min_neighbors = 2;
+  cfg.ipcl_rounds = 3;
+  sparse_nav::DensityFilterStats stats;
+  const PointList out = DensityFilter(cfg).apply(pts, &stats);
+  EXPECT_EQ(out.size(), n_dense);
+  for (const auto& p : out)
+  {
+    EXPECT_LT(p.norm(), 2.0f);
+  }
+  EXPECT_GE(stats.rounds_run, 1);
+}
+
+TEST(DensityFilter, IpclRoundsApplyRemovalsAtTheEndOfEachRound)
+{
+  // A chain a-b-c with 1 m spacing and k = 2: in round 1 only b has 2 neighbours; a and c go at
+  // the end of the round; in round 2 b has none left and goes too.
+  PointList chain{ { 0, 0, 0 }, { 1, 0, 0 }, { 2, 0, 0 } };
+  DensityFilterConfig cfg;
+  cfg.method = DensityMethod::kIpcl;
+  cfg.radius_m = 1.01;
+  cfg.min_neighbors = 2;
+  cfg.ipcl_rounds = 1;
+  PointList one = DensityFilter(cfg).apply(chain);
+  ASSERT_EQ(one.size(), 1u);
+  EXPECT_FLOAT_EQ(one[0].x(), 1.0f);
+  cfg.ipcl_rounds = 2;
+  EXPECT_TRUE(DensityFilter(cfg).apply(chain).empty());
+}
+
+TEST(DensityFilter, RadiusOutlierMatchesIpclOneRound)
+{
+  std::size_t n_dense = 0;
+  const PointList pts = denseWithIsolated(&n_dense);
+  DensityFilterConfig cfg;
+  cfg.method = DensityMethod::kRadiusOutlier;
+  cfg.radius_m = 0.06;
+  cfg.min_neighbors = 3;
+  const PointList ror = DensityFilter(cfg).apply(pts);
+  cfg.method = DensityMethod::kIpcl;
+  cfg.ipcl_rounds = 1;
+  const PointList ipcl = DensityFilter(cfg).apply(pts);
+  EXPECT_EQ(ror.size(), ipcl.size());
+  // Corners of the patch have only 2 neighbours within 6 cm.
+  EXPECT_EQ(ror.size(), n_dense - 4);
+}
+
+TEST(DensityFilter, IpclIsFastOnAHundredThousandPoints)
+{
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 10.0f);
+  PointList pts(100000);
+  for (auto& p : pts)
+  {
+    p = Eigen::Vector3f(u(rng), u(rng), u(rng) * 0.3f);
+  }
+  DensityFilterConfig cfg;
+  cfg.method = DensityMethod::kIpcl;
+  cfg.radius_m = 0.1;
+  cfg.min_neighbors = 3;
+  const auto t0 = std::chrono::steady_clock::now();
+  const PointList out = DensityFilter(cfg).apply(pts);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_GT(out.size(), 0u);
+  EXPECT_LT(ms, 2000.0);
+}
+
+TEST(VoxelFilter, AveragesPointsPerVoxel)
+{
+  PointList pts{ { 0.01f, 0.01f, 0.01f }, { 0.03f, 0.03f, 0.03f }, { 1.01f, 0.01f, 0.01f } };
+  VoxelFilterConfig cfg;
+  cfg.leaf_size_m = 0.1;
+  VoxelFilterStats stats;
+  const PointList out = VoxelFilter(cfg).apply(pts, &stats);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_FALSE(stats.overflow_guarded);
+  EXPECT_EQ(stats.n_chunks, 1u);
+}
+
+TEST(VoxelFilter, HugeExtentIsChunkedNotReturnedRaw)
+{
+  // 1e6 m in every axis with a 1 cm leaf: 1e24 voxels, far beyond PCL's int32 index.
+  PointList pts;
+  for (int i = 0; i < 50; ++i)
+  {
+    const float c = static_cast<float>(i) * 2.0e4f;
+    pts.emplace_back(c, c, c);
+    pts.emplace_back(c + 0.001f, c, c);  // same voxel as the previous point
+  }
+  pts.emplace_back(1.0e6f, 1.0e6f, 1.0e6f);
+  VoxelFilterConfig cfg;
+  cfg.leaf_size_m = 0.01;
+  VoxelFilterStats stats;
+  const PointList out = VoxelFilter(cfg).apply(pts, &stats);
+  EXPECT_TRUE(stats.overflow_guarded);
+  EXPECT_GT(stats.n_chunks, 1u);
+  EXPECT_EQ(stats.n_in, pts.size());
+  EXPECT_EQ(out.size(), 51u);  // pairs merged, nothing returned raw
+}
+
+TEST(VoxelFilter, EmptyCloud)
+{
+  VoxelFilterStats stats;
+  EXPECT_TRUE(VoxelFilter().apply(PointList(), &stats).empty());
+  EXPECT_EQ(stats.n_out, 0u);
+}

@@ -1,0 +1,255 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+#include "sparse_nav/core/grid_builder.h"
+
+using sparse_nav::FreeRay;
+using sparse_nav::GridBuilder;
+using sparse_nav::GridBuilderConfig;
+using sparse_nav::GridUpdate;
+using sparse_nav::OccupancyGrid;
+using sparse_nav::PointList2D;
+
+namespace
+{
+constexpr double kRes = 0.05;
+
+/// Centre of absolute cell (i, j) at the default resolution.
+Eigen::Vector2d cell(int i, int j)
+{
+  return Eigen::Vector2d((i + 0.5) * kRes, (j + 0.5) * kRes);
+}
+
+std::int8_t valueAt(const OccupancyGrid& g, double x, double y)
+{
+  const int c = g.colOf(x), r = g.rowOf(y);
+  EXPECT_TRUE(c >= 0 && r >= 0 && c < g.width && r < g.height) << x << ", " << y;
+  return g.at(c, r);
+}
+
+/// Outline of a 5 m x 4 m room as sparse 2D points (every 6 cells = 0.3 m), with a 0.9 m door in
+/// the wall y = 0 between x = 1.0 and x = 1.9; rays from a camera at the centre to every point,
+/// and one ray out through the door.
+void sparseRoom(PointList2D& pts, std::vector<FreeRay>& rays)
+{
+  pts.clear();
+  rays.clear();
+  for (int i = 0; i <= 100; i += 6)
+  {
+    if (i * kRes < 1.0 - 1e-9 || i * kRes > 1.9 + 1e-9)
+    {
+      pts.push_back(cell(i, 0));
+    }
+    pts.push_back(cell(i, 80));
+  }
+  pts.push_back(cell(19, 0));  // door jambs at 0.95 m and 1.95 m: a 0.9 m opening
+  pts.push_back(cell(39, 0));
+  for (int j = 0; j <= 80; j += 6)
+  {
+    pts.push_back(cell(0, j));
+    pts.push_back(cell(100, j));
+  }
+  const Eigen::Vector2d camera(2.5, 2.0);
+  for (const auto& p : pts)
+  {
+    rays.push_back(FreeRay{ camera, p });
+  }
+  rays.push_back(FreeRay{ Eigen::Vector2d(1.45, 2.0), Eigen::Vector2d(1.45, -1.0) });
+}
+}  // namespace
+
+TEST(AlphaShape, ClosesASparseWallButKeepsTheDoorwayOpen)
+{
+  PointList2D pts;
+  std::vector<FreeRay> rays;
+  sparseRoom(pts, rays);
+  GridBuilder builder;  // alpha 0.25 m: closes gaps up to 0.5 m
+  const GridUpdate u = builder.update(pts, rays);
+  ASSERT_TRUE(u.ok) << u.status;
+  const OccupancyGrid& g = builder.grid();
+  // Between sparse wall points (0.3 m apart) the wall is closed.
+  for (double x = 2.2; x < 4.8; x += kRes)
+  {
+    EXPECT_EQ(valueAt(g, x, 4.0 + 0.5 * kRes), OccupancyGrid::kOccupied) << "north wall at x " << x;
+  }
+  for (double y = 0.1; y < 3.9; y += kRes)
+  {
+    EXPECT_EQ(valueAt(g, 0.5 * kRes, y), OccupancyGrid::kOccupied) << "west wall at y " << y;
+  }
+  // The 0.9 m doorway stays open (free along the ray through it).
+  for (double x = 1.05; x <= 1.85; x += kRes)
+  {
+    EXPECT_NE(valueAt(g, x, 0.5 * kRes), OccupancyGrid::kOccupied) << "door at x " << x;
+  }
+  EXPECT_EQ(valueAt(g, 1.45, 0.5 * kRes), OccupancyGrid::kFree);
+  // Inside the room is free, behind the walls unknown.
+  EXPECT_EQ(valueAt(g, 2.5, 2.0), OccupancyGrid::kFree);
+  EXPECT_EQ(valueAt(g, 1.0, 3.0), OccupancyGrid::kFree);
+  EXPECT_EQ(valueAt(g, 3.0, 4.3), OccupancyGrid::kUnknown);
+  EXPECT_NEAR(u.alpha_m, 0.25, 1e-12);
+}
+
+TEST(AlphaShape, AutomaticAlphaFollowsTheSpacingAndKeepsTheDoorOpen)
+{
+  PointList2D pts;
+  std::vector<FreeRay> rays;
+  sparseRoom(pts, rays);
+  GridBuilderConfig cfg;
+  cfg.alpha.auto_alpha = true;
+  GridBuilder builder(cfg);
+  const GridUpdate u = builder.update(pts, rays);
+  ASSERT_TRUE(u.ok);
+  EXPECT_GE(u.alpha_m, 0.15);  // half the 0.3 m spacing or more closes the wall
+  EXPECT_LE(u.alpha_m, 0.4);
+  EXPECT_NE(valueAt(builder.grid(), 1.45, 0.5 * kRes), OccupancyGrid::kOccupied);
+  EXPECT_EQ(valueAt(builder.grid(), 3.0, 4.0 + 0.5 * kRes), OccupancyGrid::kOccupied);
+}
+
+TEST(AlphaShape, RingsAndSegments)
+{
+  // Four points of a 1 m square, alpha 1 m: one ring of four edges.
+  const PointList2D square{ { 0, 0 }, { 1, 0 }, { 1, 1 }, { 0, 1 } };
+  const auto filled = sparse_nav::computeAlphaShape(square, 1.0);
+  ASSERT_EQ(filled.rings.size(), 1u);
+  EXPECT_EQ(filled.rings[0].size(), 4u);
+  EXPECT_TRUE(filled.segments.empty());
+  // alpha 0.6 m: the sides (0.5 m half-length) are singular edges, the square is not filled.
+  const auto outline = sparse_nav::computeAlphaShape(square, 0.6);
+  EXPECT_TRUE(outline.rings.empty());
+  EXPECT_EQ(outline.segments.size(), 4u);
+  // Collinear points (a 1-D triangulation) still give segments.
+  const auto line = sparse_nav::computeAlphaShape(PointList2D{ { 0, 0 }, { 0.2, 0 }, { 0.4, 0 }, { 2.0, 0 } }, 0.15);
+  EXPECT_EQ(line.segments.size(), 2u);
+}
+
+TEST(Rasterisation, KnownSquareCells)
+{
+  // Outline of a 21 x 21-cell square every 2 cells.
+  PointList2D pts;
+  for (int k = 0; k <= 20; k += 2)
+  {
+    pts.push_back(cell(k, 0));
+    pts.push_back(cell(k, 20));
+    pts.push_back(cell(0, k));
+    pts.push_back(cell(20, k));
+  }
+  GridBuilderConfig cfg;
+  cfg.padding_m = 0.0;
+  cfg.alpha.alpha_m = 1.0;  // larger than the square's circumradius (0.71 m): filled
+  GridBuilder filled(cfg);
+  ASSERT_TRUE(filled.update(pts, {}).ok);
+  EXPECT_EQ(filled.grid().count(OccupancyGrid::kOccupied), 21u * 21u);
+  EXPECT_EQ(filled.grid().count(OccupancyGrid::kFree), 0u);
+  EXPECT_EQ(filled.grid().width % cfg.tile_size_cells, 0);
+  EXPECT_DOUBLE_EQ(filled.grid().origin_x_m, 0.0);
+
+  cfg.alpha.alpha_m = 0.06;  // gaps of 0.1 m close, the inside stays empty: the outline only
+  GridBuilder outline(cfg);
+  ASSERT_TRUE(outline.update(pts, {}).ok);
+  EXPECT_EQ(outline.grid().count(OccupancyGrid::kOccupied), 80u);
+  EXPECT_EQ(valueAt(outline.grid(), cell(10, 10).x(), cell(10, 10).y()), OccupancyGrid::kUnknown);
+}
+
+TEST(DirtyTiles, ChangingOneCornerRecomputesOnlyNearbyTilesAndMatchesAFullRebuild)
+{
+  PointList2D pts;
+  std::vector<FreeRay> rays;
+  sparseRoom(pts, rays);
+  // A bigger area so that the corner is far from most tiles: add a far wall segment.
+  for (int i = 300; i <= 400; i += 4)
+  {
+    pts.push_back(cell(i, 300));
+  }
+  GridBuilder incremental;
+  const GridUpdate first = incremental.update(pts, rays);
+  ASSERT_TRUE(first.full_rebuild);
+  const int n_tiles = (incremental.grid().width / 32) * (incremental.grid().height / 32);
+  EXPECT_EQ(static_cast<int>(first.recomputed_tiles.size()), n_tiles);
+
+  // Same input again: nothing to do.
+  const GridUpdate same = incremental.update(pts, rays);
+  EXPECT_FALSE(same.full_rebuild);
+  EXPECT_TRUE(same.recomputed_tiles.empty());
+  EXPECT_TRUE(same.changed_tiles.empty());
+
+  // Change the far corner: a few points added near (19.5, 15.5) m, one removed.
+  PointList2D changed = pts;
+  changed.pop_back();
+  for (int k = 0; k < 5; ++k)
+  {
+    changed.push_back(cell(385 + k, 305));
+  }
+  const GridUpdate u = incremental.update(changed, rays);
+  ASSERT_TRUE(u.ok);
+  EXPECT_FALSE(u.full_rebuild);
+  ASSERT_FALSE(u.recomputed_tiles.empty());
+  EXPECT_LT(static_cast<int>(u.recomputed_tiles.size()), n_tiles / 4);
+  const int col0 = incremental.grid().colOf(cell(385, 305).x()) / 32;
+  const int row0 = incremental.grid().rowOf(cell(385, 305).y()) / 32;
+  for (const auto& t : u.recomputed_tiles)
+  {
+    EXPECT_LE(std::abs(t.tx - col0), 3) << t.tx << "," << t.ty;
+    EXPECT_LE(std::abs(t.ty - row0), 3) << t.tx << "," << t.ty;
+  }
+  EXPECT_FALSE(u.changed_tiles.empty());
+  EXPECT_LT(u.min_col, u.max_col);
+  EXPECT_LT(u.min_row, u.max_row);
+
+  GridBuilder fresh;
+  ASSERT_TRUE(fresh.update(changed, rays).ok);
+  ASSERT_EQ(fresh.grid().width, incremental.grid().width);
+  ASSERT_EQ(fresh.grid().height, incremental.grid().height);
+  EXPECT_DOUBLE_EQ(fresh.grid().origin_x_m, incremental.grid().origin_x_m);
+  EXPECT_EQ(fresh.grid().data, incremental.grid().data);
+
+  // Changing a ray also recomputes the tiles it crosses, and still matches a full rebuild.
+  std::vector<FreeRay> rays2 = rays;
+  rays2.push_back(FreeRay{ Eigen::Vector2d(2.5, 2.0), Eigen::Vector2d(4.0, 3.0) });
+  rays2.erase(rays2.begin());
+  incremental.update(changed, rays2);
+  GridBuilder fresh2;
+  fresh2.update(changed, rays2);
+  EXPECT_EQ(fresh2.grid().data, incremental.grid().data);
+}
+
+TEST(DirtyTiles, GrowthForcesAFullRebuild)
+{
+  GridBuilder builder;
+  builder.update(PointList2D{ cell(0, 0), cell(10, 0) }, {});
+  const int w = builder.grid().width;
+  const GridUpdate u = builder.update(PointList2D{ cell(0, 0), cell(10, 0), cell(200, 0) }, {});
+  EXPECT_TRUE(u.full_rebuild);
+  EXPECT_GT(builder.grid().width, w);
+}
+
+TEST(GridBuilder, EmptyInputGivesAnEmptyGridWithAStatus)
+{
+  GridBuilder builder;
+  const GridUpdate u = builder.update({}, {});
+  EXPECT_TRUE(u.ok);
+  EXPECT_TRUE(builder.grid().empty());
+  EXPECT_NE(u.status.find("empty grid"), std::string::npos);
+}
+
+TEST(GridBuilder, HugeExtentIsRefusedAndTheGridKept)
+{
+  GridBuilder builder;
+  builder.update(PointList2D{ cell(0, 0), cell(10, 0) }, {});
+  const auto before = builder.grid().data;
+  const GridUpdate u = builder.update(PointList2D{ cell(0, 0), { 1e6, 1e6 } }, {});
+  EXPECT_FALSE(u.ok);
+  EXPECT_NE(u.status.find("max_cells"), std::string::npos);
+  EXPECT_EQ(builder.grid().data, before);
+}
+
+TEST(GridBuilder, ConfigValidation)
+{
+  GridBuilderConfig cfg;
+  cfg.alpha.alpha_m = 0;
+  EXPECT_THROW(GridBuilder{ cfg }, std::invalid_argument);
+  cfg = GridBuilderConfig();
+  cfg.tile_size_cells = 1;
+  EXPECT_THROW(cfg.validate(), std::invalid_argument);
+}

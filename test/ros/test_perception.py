@@ -1,0 +1,151 @@
+#!/usr/bin/python3
+"""rostest: the perception nodelets turn the simulated SLAM cloud into a map of the room."""
+import collections
+import threading
+import unittest
+
+import numpy as np
+import rospy
+import rostest
+import tf2_ros
+from nav_msgs.msg import OccupancyGrid
+from std_msgs.msg import String
+
+from sparse_nav.msg import FloorEstimate
+from sparse_nav.ros.conversions import transform_to_matrix
+from sparse_nav.ros.sim_node import load_ros_world
+from sparse_nav.scanning import initial_scan, to_tello_commands
+
+
+def segment_distance(points, segments):
+    """Distance (m) from each 2D point to the nearest of the segments (x1, y1, x2, y2)."""
+    best = np.full(len(points), np.inf)
+    for x1, y1, x2, y2 in segments:
+        a, b = np.array([x1, y1]), np.array([x2, y2])
+        ab = b - a
+        t = np.clip(((points - a) @ ab) / max(ab @ ab, 1e-12), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(points - (a + t[:, None] * ab), axis=1))
+    return best
+
+
+def passable_through_door(grid, xy, room, start, door, target, reach_m=1.0):
+    """True when non-occupied cells connect start to target within the room or near the door.
+
+    Cells are limited to the true room and a disc of reach_m around the door, so a path can only
+    leave the room through that door, not around the building through some other gap.
+    """
+    width, height = grid.info.width, grid.info.height
+    allowed = (np.asarray(grid.data) != 100) & (room | (np.hypot(*(xy - door).T) < reach_m))
+    allowed = allowed.reshape(height, width)
+    first = int(np.argmin(np.hypot(*(xy - start).T)))
+    goal = int(np.argmin(np.hypot(*(xy - target).T)))
+    if not allowed.flat[first]:
+        return False
+    seen = np.zeros_like(allowed)
+    seen.flat[first] = True
+    queue = collections.deque([divmod(first, width)])
+    while queue:
+        row, col = queue.popleft()
+        if row * width + col == goal:
+            return True
+        for r, c in ((row + 1, col), (row - 1, col), (row, col + 1), (row, col - 1)):
+            if 0 <= r < height and 0 <= c < width and allowed[r, c] and not seen[r, c]:
+                seen[r, c] = True
+                queue.append((r, c))
+    return False
+
+
+class PerceptionTest(unittest.TestCase):
+    def setUp(self):
+        self.world = load_ros_world(rospy.get_param("~world"))
+        self.limit_s = float(rospy.get_param("~sim_time_limit_s"))
+        self.lock = threading.Lock()
+        self.grid = None
+        self.floor = None
+        self.responses = []
+        rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=1)
+        rospy.Subscriber("floor_plane", FloorEstimate, self._on_floor, queue_size=1)
+        rospy.Subscriber("tello/response", String, self._on_response, queue_size=20)
+        self.tello = rospy.Publisher("tello/command", String, queue_size=10)
+        self.tf_buffer = tf2_ros.Buffer(rospy.Duration(60.0))
+        self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+
+    def _on_map(self, msg):
+        with self.lock:
+            self.grid = msg
+
+    def _on_floor(self, msg):
+        with self.lock:
+            self.floor = msg
+
+    def _on_response(self, msg):
+        with self.lock:
+            self.responses.append(msg.data)
+
+    def _command(self, text):
+        with self.lock:
+            before = len(self.responses)
+        self.tello.publish(String(data=text))
+        deadline = rospy.Time.now() + rospy.Duration(30.0)
+        while rospy.Time.now() < deadline and not rospy.is_shutdown():
+            with self.lock:
+                if len(self.responses) > before:
+                    return
+            rospy.sleep(0.05)
+
+    def _cells_in_truth_frame(self, grid):
+        """(xy of every cell centre in sim_world, the cell values)."""
+        t = transform_to_matrix(self.tf_buffer.lookup_transform(
+            "sim_world", "map", rospy.Time(0), rospy.Duration(5.0)).transform)
+        info = grid.info
+        cols, rows = np.meshgrid(np.arange(info.width), np.arange(info.height))
+        x = info.origin.position.x + (cols.ravel() + 0.5) * info.resolution
+        y = info.origin.position.y + (rows.ravel() + 0.5) * info.resolution
+        xy = np.stack([x, y], axis=1) @ t[:2, :2].T + t[:2, 3]
+        return xy, np.asarray(grid.data, dtype=np.int8)
+
+    def test_map_of_the_room_with_its_door_open(self):
+        while rospy.Time.now().is_zero() and not rospy.is_shutdown():
+            rospy.sleep(0.05)
+        rospy.sleep(1.0)
+        for command in ["command", "takeoff"] + to_tello_commands(initial_scan()):
+            self._command(command)
+            if rospy.Time.now().to_sec() > self.limit_s:
+                break
+        rospy.sleep(3.0)
+        with self.lock:
+            grid, floor = self.grid, self.floor
+        self.assertIsNotNone(grid, "a map is published (latched)")
+        self.assertIsNotNone(floor, "the floor plane is published")
+        # Few, noisy floor points: a few degrees of tilt error is what a sparse floor allows.
+        self.assertLess(floor.tilt_deg, 8.0, "the floor of a level room is nearly level")
+
+        xy, cells = self._cells_in_truth_frame(grid)
+        # Walls and furniture are the true obstacles; small clutter is not.
+        to_wall = segment_distance(xy, self.world.obstacle_segments()[0])
+        occupied = cells == 100
+        self.assertGreater(occupied.sum(), 200, "walls appear in the map")
+        near_wall = to_wall < 0.6
+        precision = (occupied & near_wall).sum() / occupied.sum()
+        self.assertGreater(precision, 0.7, f"occupied cells lie on true walls ({precision:.2f})")
+
+        xmin, ymin, xmax, ymax = 0.0, 0.0, 6.0, 5.0  # one_room's main room (see worlds/one_room.yaml)
+        inside = ((xy[:, 0] > xmin + 0.7) & (xy[:, 0] < xmax - 0.7)
+                  & (xy[:, 1] > ymin + 0.7) & (xy[:, 1] < ymax - 0.7))
+        known_free = (cells[inside] == 0).mean()
+        self.assertGreater(known_free, 0.6, f"the room's interior is free ({known_free:.2f})")
+        spurious = (cells[inside] == 100) & (to_wall[inside] > 0.6)
+        self.assertLess(spurious.mean(), 0.05, f"few spurious obstacles ({spurious.mean():.3f})")
+
+        room = ((xy[:, 0] > xmin) & (xy[:, 0] < xmax) & (xy[:, 1] > ymin) & (xy[:, 1] < ymax))
+        centre = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2])
+        for exit_ in self.world.exits:
+            door = np.array([exit_["x"], exit_["y"]])
+            outward = (door - centre) / np.linalg.norm(door - centre)
+            self.assertTrue(passable_through_door(grid, xy, room, centre, door, door + 0.6 * outward),
+                            f"the door at ({exit_['x']}, {exit_['y']}) stays open")
+
+
+if __name__ == "__main__":
+    rospy.init_node("test_perception")
+    rostest.rosrun("sparse_nav", "perception", PerceptionTest)

@@ -57,6 +57,8 @@ void GroundMapperNodelet::onInit()
   const char* home = std::getenv("HOME");
   map_dir_ = std::string(home ? home : "/tmp") + "/.ros/sparse_nav/maps";
   loadParam(pnh, "map_dir", map_dir_);
+  if (map_dir_.rfind("~/", 0) == 0)
+    map_dir_ = std::string(home ? home : "/tmp") + map_dir_.substr(1);
   loadParam(pnh, "markers_period_s", markers_period_s_);
   floor_config_.validate();
   octree_config_.validate();

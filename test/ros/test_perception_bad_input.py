@@ -1,0 +1,117 @@
+#!/usr/bin/python3
+"""rostest: malformed clouds and map files leave the perception nodelets running with their map."""
+import os
+import threading
+import unittest
+
+import numpy as np
+import rospy
+import rostest
+from nav_msgs.msg import OccupancyGrid
+from sensor_msgs.msg import PointCloud2, PointField
+from std_msgs.msg import Header
+
+from sparse_nav.ros.conversions import points_to_cloud
+from sparse_nav.srv import MapFile
+
+
+def synthetic_room(seed=0):
+    """A 6 m x 5 m room (map frame, z up) with a 1 m door in the north wall, and a floor."""
+    rng = np.random.default_rng(seed)
+    walls = [((0, 0), (6, 0)), ((6, 0), (6, 5)), ((0, 5), (0, 0)), ((6, 5), (3.5, 5)),
+             ((2.5, 5), (0, 5))]
+    points = []
+    for (x1, y1), (x2, y2) in walls:
+        n = int(np.hypot(x2 - x1, y2 - y1) * 60)
+        t = rng.random(n)
+        points.append(np.stack([x1 + t * (x2 - x1), y1 + t * (y2 - y1), rng.uniform(0.2, 2.0, n)], 1))
+    floor = np.stack([rng.uniform(0.3, 5.7, 600), rng.uniform(0.3, 4.7, 600), np.zeros(600)], 1)
+    points.append(floor)
+    return np.vstack(points) + rng.normal(0, 0.01, (sum(len(p) for p in points), 3))
+
+
+class PerceptionBadInputTest(unittest.TestCase):
+    def setUp(self):
+        self.map_dir = rospy.get_param("~map_dir")
+        self.lock = threading.Lock()
+        self.maps = []
+        rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=5)
+        self.pub = rospy.Publisher("slam/points", PointCloud2, queue_size=2, latch=True)
+
+    def _on_map(self, msg):
+        with self.lock:
+            self.maps.append(msg)
+
+    def _publish(self, msg):
+        msg.header.stamp = rospy.Time.now()
+        self.pub.publish(msg)
+        rospy.sleep(2.0)
+
+    def _good(self, seed=0):
+        return points_to_cloud(synthetic_room(seed), Header(frame_id="map"))
+
+    def _wait_for_map(self, count, timeout_s=60.0):
+        deadline = rospy.Time.now() + rospy.Duration(timeout_s)
+        while rospy.Time.now() < deadline:
+            with self.lock:
+                if len(self.maps) >= count:
+                    return self.maps[-1]
+            rospy.sleep(0.1)
+        return None
+
+    def test_bad_clouds_and_files(self):
+        rospy.wait_for_service("ground_mapper/load", 60.0)
+        self._publish(self._good())
+        first = self._wait_for_map(1)
+        self.assertIsNotNone(first, "a map from the good cloud")
+        occupied = np.count_nonzero(np.asarray(first.data) == 100)
+        self.assertGreater(occupied, 100)
+
+        nan = synthetic_room()
+        nan[::3] = np.nan
+        nan[1::7] = np.inf
+        huge = np.full((1000, 3), 1e9)
+        no_xyz = PointCloud2(header=Header(frame_id="map"), height=1, width=4, point_step=4,
+                             row_step=16, data=bytes(16),
+                             fields=[PointField("intensity", 0, PointField.FLOAT32, 1)])
+        truncated = self._good()
+        truncated.data = truncated.data[:100]
+        bad = [points_to_cloud(np.empty((0, 3)), Header(frame_id="map")),
+               no_xyz, truncated,
+               points_to_cloud(huge, Header(frame_id="map")),
+               points_to_cloud(synthetic_room(), Header(frame_id="unknown_frame")),
+               points_to_cloud(np.zeros((6_000_000, 3), np.float32), Header(frame_id="map")),
+               points_to_cloud(nan, Header(frame_id="map"))]
+        for msg in bad:
+            self._publish(msg)
+        with self.lock:
+            latest = self.maps[-1]
+        self.assertGreater(np.count_nonzero(np.asarray(latest.data) == 100), 100,
+                           "the last good map is kept")
+
+        save = rospy.ServiceProxy("ground_mapper/save", MapFile)
+        load = rospy.ServiceProxy("ground_mapper/load", MapFile)
+        result = save("room")
+        self.assertTrue(result.success, result.message)
+        self.assertTrue(os.path.isfile(os.path.join(self.map_dir, "room.bt")))
+        with open(os.path.join(self.map_dir, "corrupt.bt"), "wb") as f:
+            f.write(b"# Octomap OcTree binary file\nid OcTree\nsize 9\nres 0.05\ndata\n\x01\x02")
+        result = load("corrupt")
+        self.assertFalse(result.success)
+        self.assertIn("not a valid OctoMap", result.message)
+        for hostile in ("../x", "/etc/passwd", "a/b", ""):
+            result = load(hostile)
+            self.assertFalse(result.success, hostile)
+            self.assertIn("invalid name", result.message)
+        self.assertTrue(load("room").success)
+
+        # Still running: a new good cloud still updates the map.
+        with self.lock:
+            before = len(self.maps)
+        self._publish(self._good(seed=1))
+        self.assertIsNotNone(self._wait_for_map(before + 1), "the nodes keep running")
+
+
+if __name__ == "__main__":
+    rospy.init_node("test_perception_bad_input")
+    rostest.rosrun("sparse_nav", "perception_bad_input", PerceptionBadInputTest)

@@ -39,6 +39,8 @@ const char* const kUsage =
     "  --scale S               metres per SLAM unit (default 1). Monocular ORB-SLAM has no metric\n"
     "                          scale: without S every metric option below is in SLAM units\n"
     "  --max-tilt-deg D        largest floor tilt from the up axis (default 15)\n"
+    "  --floor-distance M      RANSAC inlier distance of the floor plane (default 0.03)\n"
+    "  --floor-planes N        near-horizontal planes tried for the floor (default 4)\n"
     "  --floor-clearance M     map z below which points are floor (default 0.15)\n"
     "  --ceiling-height M      map z above which points are ceiling (default 2.2)\n"
     "  --density METHOD        none, radius or ipcl (default radius)\n"
@@ -106,6 +108,10 @@ Args parseArgs(int argc, char** argv)
       a.config.metres_per_unit = number(arg, value());
     else if (arg == "--max-tilt-deg")
       a.config.floor.max_tilt_deg = number(arg, value());
+    else if (arg == "--floor-distance")
+      a.config.floor.distance_threshold_m = number(arg, value());
+    else if (arg == "--floor-planes")
+      a.config.floor.max_planes = static_cast<int>(number(arg, value()));
     else if (arg == "--floor-clearance")
       a.config.floor_clearance_m = number(arg, value());
     else if (arg == "--ceiling-height")

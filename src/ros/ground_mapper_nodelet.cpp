@@ -234,11 +234,11 @@ void GroundMapperNodelet::publishMarkers(const std_msgs::Header& header)
   floor.pose.orientation.y = q.y();
   floor.pose.orientation.z = q.z();
   floor.pose.orientation.w = q.w();
-  floor.scale.x = floor.scale.y = 10.0;
+  floor.scale.x = floor.scale.y = 6.0;
   floor.scale.z = 0.01;
   floor.color.g = 0.6f;
   floor.color.b = 0.8f;
-  floor.color.a = 0.25f;
+  floor.color.a = 0.1f;
   floor_marker_pub_.publish(floor);
 
   visualization_msgs::Marker voxels;

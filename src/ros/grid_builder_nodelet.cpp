@@ -4,7 +4,6 @@
 #include <exception>
 #include <limits>
 
-#include <geometry_msgs/TransformStamped.h>
 #include <map_msgs/OccupancyGridUpdate.h>
 #include <nav_msgs/OccupancyGrid.h>
 #include <visualization_msgs/Marker.h>
@@ -62,22 +61,17 @@ void GridBuilderNodelet::diagnose(bool ok, const std::string& message)
 
 void GridBuilderNodelet::rememberCamera(const ros::Time& stamp)
 {
-  try
-  {
-    geometry_msgs::TransformStamped tf;
-    if (tf_buffer_->canTransform(map_frame_, camera_frame_, stamp, ros::Duration(0.05)))
-      tf = tf_buffer_->lookupTransform(map_frame_, camera_frame_, stamp);
-    else
-      tf = tf_buffer_->lookupTransform(map_frame_, camera_frame_, ros::Time(0));
-    const Eigen::Vector2d p(tf.transform.translation.x, tf.transform.translation.y);
-    if (trajectory_.empty() || (trajectory_.back() - p).norm() >= trajectory_spacing_m_)
-      trajectory_.push_back(p);
-  }
-  catch (const tf2::TransformException& e)
+  Eigen::Vector3d origin;
+  std::string error;
+  if (!lookupOrigin(*tf_buffer_, map_frame_, camera_frame_, stamp, origin, &error))
   {
     NODELET_WARN_THROTTLE(5.0, "grid_builder: no TF %s -> %s (%s); free space not updated", map_frame_.c_str(),
-                          camera_frame_.c_str(), e.what());
+                          camera_frame_.c_str(), error.c_str());
+    return;
   }
+  const Eigen::Vector2d p = origin.head<2>();
+  if (trajectory_.empty() || (trajectory_.back() - p).norm() >= trajectory_spacing_m_)
+    trajectory_.push_back(p);
 }
 
 void GridBuilderNodelet::onFloor(const sensor_msgs::PointCloud2ConstPtr& msg)

@@ -8,7 +8,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <geometry_msgs/TransformStamped.h>
 #include <visualization_msgs/Marker.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -82,22 +81,12 @@ void GroundMapperNodelet::onInit()
 
 bool GroundMapperNodelet::cameraPosition(const ros::Time& stamp, Eigen::Vector3d& position)
 {
-  try
-  {
-    geometry_msgs::TransformStamped tf;
-    if (tf_buffer_->canTransform(map_frame_, camera_frame_, stamp, ros::Duration(0.05)))
-      tf = tf_buffer_->lookupTransform(map_frame_, camera_frame_, stamp);
-    else
-      tf = tf_buffer_->lookupTransform(map_frame_, camera_frame_, ros::Time(0));
-    position = Eigen::Vector3d(tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z);
+  std::string error;
+  if (lookupOrigin(*tf_buffer_, map_frame_, camera_frame_, stamp, position, &error))
     return true;
-  }
-  catch (const tf2::TransformException& e)
-  {
-    NODELET_WARN_THROTTLE(5.0, "ground_mapper: no TF %s -> %s (%s)", map_frame_.c_str(), camera_frame_.c_str(),
-                          e.what());
-    return false;
-  }
+  NODELET_WARN_THROTTLE(5.0, "ground_mapper: no TF %s -> %s (%s)", map_frame_.c_str(), camera_frame_.c_str(),
+                        error.c_str());
+  return false;
 }
 
 void GroundMapperNodelet::diagnose(bool ok, const std::string& message)

@@ -32,6 +32,24 @@ void publishDiagnostics(ros::Publisher& pub, const std::string& name, bool ok, c
   pub.publish(array);
 }
 
+bool lookupOrigin(const tf2_ros::Buffer& buffer, const std::string& fixed_frame, const std::string& frame,
+                  const ros::Time& stamp, Eigen::Vector3d& origin, std::string* error)
+{
+  try
+  {
+    const ros::Time when = buffer.canTransform(fixed_frame, frame, stamp, ros::Duration(0.05)) ? stamp : ros::Time(0);
+    const auto t = buffer.lookupTransform(fixed_frame, frame, when).transform.translation;
+    origin = Eigen::Vector3d(t.x, t.y, t.z);
+    return true;
+  }
+  catch (const tf2::TransformException& e)
+  {
+    if (error)
+      *error = e.what();
+    return false;
+  }
+}
+
 bool isValidMapName(const std::string& name)
 {
   if (name.empty() || name.size() > 64)

@@ -9,8 +9,8 @@ import rospy
 import rostest
 import tf2_ros
 from nav_msgs.msg import OccupancyGrid
-from std_msgs.msg import String
 
+from drone_driver import DroneDriver
 from sparse_nav.msg import FloorEstimate
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.sim_node import load_ros_world
@@ -62,11 +62,9 @@ class PerceptionTest(unittest.TestCase):
         self.lock = threading.Lock()
         self.grid = None
         self.floor = None
-        self.responses = []
         rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=1)
         rospy.Subscriber("floor_plane", FloorEstimate, self._on_floor, queue_size=1)
-        rospy.Subscriber("tello/response", String, self._on_response, queue_size=20)
-        self.tello = rospy.Publisher("tello/command", String, queue_size=10)
+        self.drone = DroneDriver()
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(60.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
 
@@ -77,21 +75,6 @@ class PerceptionTest(unittest.TestCase):
     def _on_floor(self, msg):
         with self.lock:
             self.floor = msg
-
-    def _on_response(self, msg):
-        with self.lock:
-            self.responses.append(msg.data)
-
-    def _command(self, text):
-        with self.lock:
-            before = len(self.responses)
-        self.tello.publish(String(data=text))
-        deadline = rospy.Time.now() + rospy.Duration(30.0)
-        while rospy.Time.now() < deadline and not rospy.is_shutdown():
-            with self.lock:
-                if len(self.responses) > before:
-                    return
-            rospy.sleep(0.05)
 
     def _cells_in_truth_frame(self, grid):
         """(xy of every cell centre in sim_world, the cell values)."""
@@ -109,7 +92,7 @@ class PerceptionTest(unittest.TestCase):
             rospy.sleep(0.05)
         rospy.sleep(1.0)
         for command in ["command", "takeoff"] + to_tello_commands(initial_scan()):
-            self._command(command)
+            self.drone.command(command)
             if rospy.Time.now().to_sec() > self.limit_s:
                 break
         rospy.sleep(3.0)

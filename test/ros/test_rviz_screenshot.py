@@ -19,6 +19,7 @@ import rostest
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import String
 
+from drone_driver import DroneDriver
 from sparse_nav.scanning import initial_scan, to_tello_commands
 
 SCREENSHOT = os.path.join(tempfile.gettempdir(), "sparse_nav_rviz_screenshot.png")
@@ -48,11 +49,9 @@ def red_pixels(image):
 class RvizScreenshotTest(unittest.TestCase):
     def setUp(self):
         self.points = 0
-        self.responses = []
         self.lock = threading.Lock()
         rospy.Subscriber("slam/points", PointCloud2, self._on_points, queue_size=2)
-        rospy.Subscriber("tello/response", String, self._on_response, queue_size=20)
-        self.tello = rospy.Publisher("tello/command", String, queue_size=10)
+        self.drone = DroneDriver()
         self.procs = []
 
     def tearDown(self):
@@ -67,21 +66,6 @@ class RvizScreenshotTest(unittest.TestCase):
         with self.lock:
             self.points = msg.width * msg.height
 
-    def _on_response(self, msg):
-        with self.lock:
-            self.responses.append(msg.data)
-
-    def _command(self, text):
-        with self.lock:
-            before = len(self.responses)
-        self.tello.publish(String(data=text))
-        deadline = rospy.Time.now() + rospy.Duration(30.0)
-        while rospy.Time.now() < deadline and not rospy.is_shutdown():
-            with self.lock:
-                if len(self.responses) > before:
-                    return
-            rospy.sleep(0.05)
-
     def test_cloud_is_drawn(self):
         for tool in ("Xvfb", "xwd", "xwdtopnm", "rviz"):
             self.assertIsNotNone(shutil.which(tool), f"{tool} is installed by make setup")
@@ -89,7 +73,7 @@ class RvizScreenshotTest(unittest.TestCase):
             rospy.sleep(0.05)
         rospy.sleep(1.0)
         for command in ["command", "takeoff"] + to_tello_commands(initial_scan())[:30]:
-            self._command(command)
+            self.drone.command(command)
             with self.lock:
                 if self.points >= 300:
                     break
@@ -109,7 +93,7 @@ class RvizScreenshotTest(unittest.TestCase):
         deadline = time.monotonic() + 150.0
         while time.monotonic() < deadline and best < 200:
             time.sleep(5.0)
-            self.tello.publish(String(data="cw 10"))  # keep the drone busy: no auto-landing
+            self.drone.publisher.publish(String(data="cw 10"))  # keep flying: no auto-landing
             shot = _screenshot(display)
             count = red_pixels(shot)
             if count >= best:

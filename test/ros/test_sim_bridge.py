@@ -9,8 +9,9 @@ import tf2_ros
 from geometry_msgs.msg import PoseStamped, Twist
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
-from std_msgs.msg import Float64, Int32, String
+from std_msgs.msg import Float64, Int32
 
+from drone_driver import DroneDriver
 from sparse_nav.msg import SlamScale, SlamState
 from sparse_nav.scanning import initial_scan, to_tello_commands, to_velocity_segments
 
@@ -18,7 +19,7 @@ TOPICS = [("/clock", Clock), ("orb_slam3/camera_pose", PoseStamped),
           ("orb_slam3/tracked_points", PointCloud2), ("orb_slam3/all_points", PointCloud2),
           ("orb_slam3/tracking_state", Int32), ("slam/state", SlamState),
           ("slam/scale", SlamScale), ("slam/points", PointCloud2),
-          ("ground_truth/slam_scale", Float64), ("tello/response", String)]
+          ("ground_truth/slam_scale", Float64)]
 
 
 class SimBridgeTest(unittest.TestCase):
@@ -34,15 +35,13 @@ class SimBridgeTest(unittest.TestCase):
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(60.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self.cmd_pub = rospy.Publisher("cmd_vel", Twist, queue_size=10)
-        self.tello_pub = rospy.Publisher("tello/command", String, queue_size=10)
+        self.drone = DroneDriver()
 
     def _on_msg(self, msg, topic):
         with self.lock:
             self.stamps[topic].append(rospy.Time.now().to_sec())
             if topic == "slam/state":
                 self.latest.setdefault("states", []).append(msg)
-            elif topic == "tello/response":
-                self.latest.setdefault("responses", []).append(msg.data)
             self.latest[topic] = msg
 
     def _wait_sim(self, seconds):
@@ -66,15 +65,7 @@ class SimBridgeTest(unittest.TestCase):
             self.cmd_pub.publish(Twist())
         else:
             for command in ["command", "takeoff"] + to_tello_commands(steps):
-                with self.lock:
-                    before = len(self.latest.get("responses", []))
-                self.tello_pub.publish(String(data=command))
-                deadline = rospy.Time.now() + rospy.Duration(30.0)
-                while rospy.Time.now() < deadline and not rospy.is_shutdown():
-                    with self.lock:
-                        if len(self.latest.get("responses", [])) > before:
-                            break
-                    rospy.sleep(0.05)
+                self.drone.command(command)
                 if rospy.Time.now().to_sec() > until_s:
                     break
 

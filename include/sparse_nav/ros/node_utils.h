@@ -4,8 +4,10 @@
 #include <map>
 #include <string>
 
+#include <Eigen/Core>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <ros/ros.h>
+#include <tf2_ros/buffer.h>
 
 namespace sparse_nav
 {
@@ -22,6 +24,13 @@ void loadParam(const ros::NodeHandle& pnh, const std::string& name, std::size_t&
 /// @brief Publishes one DiagnosticStatus named `name` on /diagnostics.
 void publishDiagnostics(ros::Publisher& pub, const std::string& name, bool ok, const std::string& message,
                         const std::map<std::string, std::string>& values);
+
+/**
+ * @brief Origin of `frame` in `fixed_frame` at `stamp`, or at the latest time TF has when the
+ * stamp is not (yet) available. Returns false and sets `error` when there is no such transform.
+ */
+bool lookupOrigin(const tf2_ros::Buffer& buffer, const std::string& fixed_frame, const std::string& frame,
+                  const ros::Time& stamp, Eigen::Vector3d& origin, std::string* error);
 
 /// @brief True for a map file name: 1-64 letters, digits, '_' or '-' (never a path).
 bool isValidMapName(const std::string& name);

@@ -11,7 +11,8 @@ from hypothesis import strategies as st
 from sparse_nav import _planning as planning
 
 SQRT2 = math.sqrt(2.0)
-MOVINGAI = "/work/shared/data/movingai"
+MOVINGAI = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "shared",
+                        "data", "movingai")
 MOVINGAI_MAP = os.path.join(MOVINGAI, "Lucas-707_PAStar", "den312d.map")
 
 

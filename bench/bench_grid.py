@@ -89,7 +89,6 @@ OUR_STAGE_ORDER = ("read", "guard", "density", "voxel", "floor", "align", "octre
 OUR_GRID_STAGES = ("slice", "alpha", "raster", "grid")
 
 
-# ------------------------------------------------------------------------------ clouds
 
 def _faces():
     """Wall faces: list of (start (2,), unit direction (2,), length, normal offset (2,), doors)."""
@@ -206,7 +205,6 @@ def write_csv(path, cloud):
     np.savetxt(path, cloud, fmt="%.4f", delimiter=",", header="x,y,z", comments="")
 
 
-# ------------------------------------------------------------------------------ tools
 
 def find_build_grid():
     """Path of the build_grid binary, or None (see the module docstring for the order)."""
@@ -359,7 +357,6 @@ def run_baseline(cloud, tmp, budget_s):
         return json.load(handle)
 
 
-# ------------------------------------------------------------------------------ report
 
 def _fmt_ms(value):
     """Milliseconds for the table: '-' for none, one decimal below 100 ms."""

@@ -44,7 +44,6 @@ void appendFromPcl(const pcl::PointCloud<pcl::PointXYZ>& cloud, PointList& out)
 }
 }  // namespace
 
-// ------------------------------------------------------------------------------- PointGuard
 
 void PointGuardConfig::validate() const
 {
@@ -88,7 +87,6 @@ PointList PointGuard::apply(const PointList& points, PointGuardStats* stats) con
   return out;
 }
 
-// ---------------------------------------------------------------------------- DensityFilter
 
 DensityMethod densityMethodFromString(const std::string& name)
 {
@@ -215,7 +213,6 @@ PointList DensityFilter::applyIpcl(const PointList& points, DensityFilterStats* 
   return alive;
 }
 
-// ------------------------------------------------------------------------------ VoxelFilter
 
 void VoxelFilterConfig::validate() const
 {

@@ -60,7 +60,6 @@ cv::Point canonicalA(const cv::Point& a, const cv::Point& b)
 }
 }  // namespace
 
-// ------------------------------------------------------------------------------------ grid
 
 int OccupancyGrid::colOf(double x_m) const
 {
@@ -87,7 +86,6 @@ bool GridBuilder::Ray::operator==(const Ray& o) const
   return x0 == o.x0 && y0 == o.y0 && x1 == o.x1 && y1 == o.y1;
 }
 
-// ---------------------------------------------------------------------------- GridBuilder
 
 void GridBuilderConfig::validate() const
 {

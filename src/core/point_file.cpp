@@ -162,7 +162,6 @@ void readText(const std::string& path, const std::string& data, PointFileResult&
   }
 }
 
-// ------------------------------------------------------------------------------------- PLY
 
 struct PlyProperty
 {
@@ -451,7 +450,6 @@ void readPly(const std::string& path, const std::string& data, PointFileResult& 
   out.n_rows = out.points.size();
 }
 
-// ------------------------------------------------------------------------------------- PCD
 
 void readPcd(const std::string& path, PointFileResult& out)
 {

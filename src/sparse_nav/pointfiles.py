@@ -171,7 +171,6 @@ def write_points_csv(path, points):
     _fsync_directory(directory)
 
 
-# --------------------------------------------------------------------------- dispatch
 
 
 def _read(path, fmt, up_axis, drop_non_finite):
@@ -278,7 +277,6 @@ def _fsync_directory(directory):
         os.close(fd)
 
 
-# --------------------------------------------------------------------------- text
 
 
 def _check_text(name, data, what=None):
@@ -540,7 +538,6 @@ def _first_bad_token_line(name, text, first_line_number, what):
     return PointFileError(f"{name}: the {what} is not plain numbers")
 
 
-# --------------------------------------------------------------------------- PLY
 
 
 def _read_ply(name, data):
@@ -736,7 +733,6 @@ def _read_binary_property(name, body, offset, prop, order, encoding):
     return value, offset
 
 
-# --------------------------------------------------------------------------- PCD
 
 
 def _read_pcd(name, data):

@@ -37,7 +37,6 @@ def assert_error(path, *fragments, **kwargs):
     return message
 
 
-# --------------------------------------------------------------------------- text
 
 
 def test_csv_with_trailing_empty_fields(tmp_path):
@@ -210,7 +209,6 @@ def test_fast_and_exact_text_readers_agree():
             assert fast[1] == exact[1], body
 
 
-# --------------------------------------------------------------------------- PLY
 
 
 def ply_header(encoding, elements):
@@ -340,7 +338,6 @@ def test_ply_extension_without_ply_header(tmp_path):
     assert_error(write(tmp_path, "fake.ply", "1 2 3\n"), "not a PLY file")
 
 
-# --------------------------------------------------------------------------- PCD
 
 
 def pcd_header(fields, sizes, types_, counts, n, data, width=None, points=True):
@@ -455,7 +452,6 @@ def test_corrupted_files_raise_only_point_file_errors(tmp_path):
             assert points.ndim == 2 and points.shape[1] == 3 and len(points) > 0
 
 
-# --------------------------------------------------------------------------- options
 
 
 AXES = {"x": [1, 0, 0], "-x": [-1, 0, 0], "y": [0, 1, 0], "-y": [0, -1, 0],
@@ -500,7 +496,6 @@ def test_info_keys(tmp_path):
     assert info["format"] == "text" and info["n_rows"] == 1 and info["extra_columns"] == 1
 
 
-# --------------------------------------------------------------------------- writing
 
 
 def test_write_points_csv_round_trip(tmp_path):
@@ -538,7 +533,6 @@ def test_write_points_csv_rejects_bad_shape(tmp_path):
         write_points_csv(str(tmp_path / "bad.csv"), np.zeros((4, 2)))
 
 
-# --------------------------------------------------------------------------- shared data
 
 
 def shared_cloud_files():

@@ -261,7 +261,6 @@ class World:
         return np.vstack([walls, bsegs]), heights
 
 
-# ----------------------------------------------------------------------------------------------
 # Loading and validation
 
 
@@ -594,7 +593,6 @@ def _check_start(ck, world, outlines):
             ck.fail("start", f"({p[0]:g}, {p[1]:g}) is inside box {bi}")
 
 
-# ----------------------------------------------------------------------------------------------
 # Small 2D geometry helpers shared by the simulator modules
 
 

@@ -2,6 +2,7 @@ from catkin_pkg.python_setup import generate_distutils_setup
 from setuptools import setup
 
 setup(**generate_distutils_setup(
-    packages=["sparse_nav", "sparse_nav.sim", "sparse_nav.ros"],
+    packages=["sparse_nav", "sparse_nav.sim", "sparse_nav.ros", "sparse_nav.exit_finder",
+              "sparse_nav.tools"],
     package_dir={"": "src"},
 ))

@@ -1,0 +1,1 @@
+"""Command-line tools of sparse_nav (ROS-free); each has a main() that a shim in scripts/ calls."""

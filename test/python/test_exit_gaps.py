@@ -1,0 +1,115 @@
+"""Exit finder beyond seed 000: door gaps on any outline, confidence, external gaps, auto."""
+import numpy as np
+import pytest
+
+from sparse_nav.exit_finder import ExitFinderConfig, ExitFinderError, find_exit, finder
+from sparse_nav.exit_finder import gaps as gapslib
+from sparse_nav.exit_finder.synthetic import Door, room_cloud, to_orbslam
+
+RECT = [(-3.0, -2.0), (3.0, -2.0), (3.0, 2.0), (-3.0, 2.0)]
+L_ROOM = [(0.0, 0.0), (6.0, 0.0), (6.0, 3.0), (3.0, 3.0), (3.0, 6.0), (0.0, 6.0)]
+
+
+def near(a, b, tol):
+    return float(np.hypot(*(np.asarray(a[:2]) - np.asarray(b[:2])))) <= tol
+
+
+def test_a_door_in_the_middle_of_a_wall():
+    xy, doors = room_cloud(RECT, [Door(side=0, at_m=2.0)], viewpoint=(0.3, 0.2), clutter=150,
+                           outliers=30, noise=0.03)
+    result = find_exit(to_orbslam(xy), method="gaps")
+    assert result.status == "ok" and result.method == "gaps"
+    assert near(result.exits[0], doors[0], 0.3)
+    assert all(0.0 <= s <= 1.0 for _, _, s in result.exits)
+    scores = [s for _, _, s in result.exits]
+    assert scores == sorted(scores, reverse=True)
+    # The outline follows the room: its corners near the room's.
+    corners = np.array(result.room_corners)
+    for c in RECT:
+        assert np.min(np.hypot(*(corners - c).T)) < 0.5
+
+
+def test_two_doors_in_an_l_shaped_room_are_both_ranked():
+    xy, doors = room_cloud(L_ROOM, [Door(side=1, at_m=1.5), Door(side=4, at_m=2.0)],
+                           viewpoint=(1.5, 1.5), clutter=100, seed=1)
+    result = find_exit(xy, method="gaps", up_axis=None, viewpoint=(1.5, 1.5))
+    assert len(result.room_corners) > 4
+    top = result.exits[:2]
+    for door in doors:
+        assert any(near(e, door, 0.3) for e in top)
+
+
+def test_a_closed_room_has_no_confident_exit():
+    xy, _ = room_cloud(RECT, [], viewpoint=(0.3, 0.2), clutter=150, seed=2)
+    result = find_exit(xy, method="gaps", up_axis=None, viewpoint=(0.3, 0.2))
+    assert all(s < 0.3 for _, _, s in result.exits)
+    if not result.exits:
+        assert result.status == "no_exit" and result.reason
+
+
+def test_a_wider_blank_gap_without_anything_behind_is_less_likely_than_a_door():
+    # Side 2 is missing 2.4 m of wall with nothing seen through it; side 0 has a real door.
+    xy, doors = room_cloud(RECT, [Door(side=0, at_m=4.0)], viewpoint=(0.0, 0.0), seed=3)
+    blank = (np.abs(xy[:, 1] - 2.0) < 0.2) & (np.abs(xy[:, 0]) < 1.2)
+    result = find_exit(xy[~blank], method="gaps", up_axis=None, viewpoint=(0.0, 0.0))
+    assert near(result.exits[0], doors[0], 0.3)
+
+
+def test_external_door_gaps_are_fused():
+    xy, doors = room_cloud(RECT, [Door(side=0, at_m=2.0)], viewpoint=(0.3, 0.2), seed=4)
+    base = find_exit(xy, method="gaps", up_axis=None, viewpoint=(0.3, 0.2))
+    d = doors[0]
+    fused = find_exit(xy, method="gaps", up_axis=None, viewpoint=(0.3, 0.2),
+                      door_gaps=[(d[0] + 0.05, d[1], 1.0), (2.5, 2.0, 0.9)])
+    assert near(fused.exits[0], d, 0.3)
+    assert fused.exits[0][2] > base.exits[0][2]
+    # The gap the extractor saw elsewhere (nothing seen through it here) is a weak candidate.
+    other = [e for e in fused.exits if near(e, (2.5, 2.0), 0.05)]
+    assert other and other[0][2] < fused.exits[0][2]
+    with pytest.raises(ExitFinderError, match="door_gaps"):
+        find_exit(xy, method="gaps", up_axis=None, door_gaps=[(0.0, 0.0, -1.0)])
+    with pytest.raises(ExitFinderError, match="door_gaps"):
+        find_exit(xy, method="gaps", up_axis=None, door_gaps=[(0.0, 0.0)])
+
+
+def test_surface_profile_of_a_circle():
+    angles = np.linspace(-np.pi, np.pi, 3600, endpoint=False)
+    q = 0.8 * np.column_stack([np.cos(angles), np.sin(angles)])
+    profile = gapslib.surface_profile(q, np.zeros(2), ExitFinderConfig())
+    assert np.isfinite(profile.ranges).all()
+    np.testing.assert_allclose(profile.ranges, 0.8, rtol=0.03)
+    assert gapslib.hidden_points(profile, 0.15) == 0
+
+
+def test_viewpoint_is_estimated_where_the_cloud_was_seen_from():
+    view = np.array([1.2, -0.6])
+    xy, _ = room_cloud(RECT, [Door(side=0, at_m=1.5), Door(side=1, at_m=2.0)], viewpoint=view,
+                       noise=0.05, seed=5)
+    cfg = ExitFinderConfig(gap_viewpoint="estimate")
+    prep = finder.prepare(xy, None, cfg)
+    est = prep.frame.from_norm(gapslib.estimate_viewpoint(prep.q, cfg,
+                                                          np.random.default_rng(0)))
+    assert np.hypot(*(est - view)) < 0.8
+    centroid = xy.mean(axis=0)
+    assert np.hypot(*(est - view)) < np.hypot(*(centroid - view))
+
+
+def test_origin_viewpoint_falls_back_outside_the_cloud():
+    xy, doors = room_cloud(RECT, [Door(side=0, at_m=2.0)], viewpoint=(0.3, 0.2), seed=6)
+    cfg = ExitFinderConfig()
+    inside = finder.prepare(xy, None, cfg)
+    assert finder._viewpoint(inside, cfg, None) is not None
+    far = finder.prepare(xy + [100.0, 0.0], None, cfg)
+    assert finder._viewpoint(far, cfg, None) is None      # estimated instead
+    result = find_exit(xy + [100.0, 0.0], method="gaps", up_axis=None)
+    assert result.exits
+
+
+def test_auto_uses_gaps_when_confident_and_the_seed_otherwise():
+    xy, doors = room_cloud(RECT, [Door(side=0, at_m=2.0)], viewpoint=(0.3, 0.2), seed=7)
+    result = find_exit(xy, method="auto", up_axis=None)
+    assert result.method == "auto:gaps" and near(result.exits[0], doors[0], 0.3)
+    strict = ExitFinderConfig(auto_min_confidence=1.0)
+    fallback = find_exit(xy, method="auto", up_axis=None, config=strict)
+    assert fallback.method in ("auto:seed", "auto:concave_vertex", "auto:gaps")
+    assert fallback.method != "auto:gaps" or fallback.exits[0][2] < 1.0

@@ -9,9 +9,10 @@ import rospy
 import rostest
 import tf2_ros
 from nav_msgs.msg import OccupancyGrid
+from std_msgs.msg import Float64
 
 from drone_driver import DroneDriver
-from sparse_nav.msg import FloorEstimate
+from sparse_nav.msg import FloorEstimate, SlamScale
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.sim_node import load_ros_world
 from sparse_nav.scanning import initial_scan, to_tello_commands
@@ -62,7 +63,11 @@ class PerceptionTest(unittest.TestCase):
         self.lock = threading.Lock()
         self.grid = None
         self.floor = None
+        self.estimated_scale = None
+        self.true_scale = None
         rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=1)
+        rospy.Subscriber("slam/scale", SlamScale, self._on_scale, queue_size=1)
+        rospy.Subscriber("ground_truth/slam_scale", Float64, self._on_true_scale, queue_size=1)
         rospy.Subscriber("floor_plane", FloorEstimate, self._on_floor, queue_size=1)
         self.drone = DroneDriver()
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(60.0))
@@ -76,15 +81,28 @@ class PerceptionTest(unittest.TestCase):
         with self.lock:
             self.floor = msg
 
-    def _cells_in_truth_frame(self, grid):
-        """(xy of every cell centre in sim_world, the cell values)."""
+    def _on_scale(self, msg):
+        with self.lock:
+            self.estimated_scale = msg.metres_per_unit
+
+    def _on_true_scale(self, msg):
+        with self.lock:
+            self.true_scale = msg.data
+
+    def _cells_in_truth_frame(self, grid, scale_ratio):
+        """(xy of every cell centre in sim_world, the cell values).
+
+        The map is metric only up to the bridge's scale estimate (a few per cent off from the
+        drone's commanded moves); scale_ratio = true / estimated scale takes that error out, so the
+        test judges the map's shape, not the scale estimator (tested on its own).
+        """
         t = transform_to_matrix(self.tf_buffer.lookup_transform(
             "sim_world", "map", rospy.Time(0), rospy.Duration(5.0)).transform)
         info = grid.info
         cols, rows = np.meshgrid(np.arange(info.width), np.arange(info.height))
         x = info.origin.position.x + (cols.ravel() + 0.5) * info.resolution
         y = info.origin.position.y + (rows.ravel() + 0.5) * info.resolution
-        xy = np.stack([x, y], axis=1) @ t[:2, :2].T + t[:2, 3]
+        xy = (scale_ratio * np.stack([x, y], axis=1)) @ t[:2, :2].T + t[:2, 3]
         return xy, np.asarray(grid.data, dtype=np.int8)
 
     def test_map_of_the_room_with_its_door_open(self):
@@ -98,12 +116,16 @@ class PerceptionTest(unittest.TestCase):
         rospy.sleep(3.0)
         with self.lock:
             grid, floor = self.grid, self.floor
+            estimated_scale, true_scale = self.estimated_scale, self.true_scale
         self.assertIsNotNone(grid, "a map is published (latched)")
         self.assertIsNotNone(floor, "the floor plane is published")
         # Few, noisy floor points: a few degrees of tilt error is what a sparse floor allows.
         self.assertLess(floor.tilt_deg, 8.0, "the floor of a level room is nearly level")
 
-        xy, cells = self._cells_in_truth_frame(grid)
+        self.assertIsNotNone(estimated_scale, "the bridge publishes its scale estimate")
+        scale_ratio = true_scale / estimated_scale
+        self.assertLess(abs(scale_ratio - 1.0), 0.25, "the scale estimate is within 25 %")
+        xy, cells = self._cells_in_truth_frame(grid, scale_ratio)
         # Walls and furniture are the true obstacles; small clutter is not.
         to_wall = segment_distance(xy, self.world.obstacle_segments()[0])
         occupied = cells == 100

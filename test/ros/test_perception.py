@@ -123,6 +123,7 @@ class PerceptionTest(unittest.TestCase):
         self.assertLess(floor.tilt_deg, 8.0, "the floor of a level room is nearly level")
 
         self.assertIsNotNone(estimated_scale, "the bridge publishes its scale estimate")
+        self.assertIsNotNone(true_scale, "the simulator publishes the true scale")
         scale_ratio = true_scale / estimated_scale
         self.assertLess(abs(scale_ratio - 1.0), 0.25, "the scale estimate is within 25 %")
         xy, cells = self._cells_in_truth_frame(grid, scale_ratio)

@@ -48,8 +48,8 @@ build: setup
 	@find $(WS)/src/sparse_nav -maxdepth 1 -xtype l -delete
 	@for entry in $(PKG_ENTRIES); do ln -sfn $(ROOT)/$$entry $(WS)/src/sparse_nav/$$entry; done
 	cd $(WS) && catkin_make -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release \
-	  -DCATKIN_ENABLE_TESTING=ON -j2 > $(ROOT)/build/catkin_make.log 2>&1 \
-	  || { tail -n 60 $(ROOT)/build/catkin_make.log; exit 1; }
+	  -DCATKIN_ENABLE_TESTING=ON -j2 > $(WS)/catkin_make.log 2>&1 \
+	  || { tail -n 60 $(WS)/catkin_make.log; exit 1; }
 	@echo "make build: workspace ready in $(WS)"
 
 test: build

@@ -24,7 +24,7 @@ class Step:
 
     def undo(self):
         """The reverse step of this one."""
-        return Step(-self.forward_m, -self.left_m, -self.ccw_deg, reverse=True)
+        return Step(-self.forward_m, -self.left_m, -self.ccw_deg, reverse=not self.reverse)
 
 
 @dataclasses.dataclass

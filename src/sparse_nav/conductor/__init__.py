@@ -1,0 +1,7 @@
+"""The mission's deliberative layer (seed 004's conductor running seed 000's mission), ROS-free."""
+from sparse_nav.conductor.machine import (Action, ActionKind, Conductor, ConductorConfig,
+                                          Observation, Phase, State, Transition)
+from sparse_nav.conductor.scan_runner import ScanRunner, ScanRunnerConfig
+
+__all__ = ["Action", "ActionKind", "Conductor", "ConductorConfig", "Observation", "Phase",
+           "State", "Transition", "ScanRunner", "ScanRunnerConfig"]

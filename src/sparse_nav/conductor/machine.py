@@ -1,0 +1,311 @@
+"""The conductor's automaton (seed 004) running the escape mission (seed 000), ROS-free.
+
+The conductor decides; it does not move the robot or read topics. Its node feeds it an
+:class:`Observation` per tick and carries out the :class:`Action` list it returns. Every change of
+state or phase is recorded with its reason, so a run can be explained afterwards.
+
+States (004): START builds the first map (scans), IDLE waits with a healthy map, GOAL navigates,
+LOST waits for tracking to come back (motion stopped), RECOVER frees a robot that the map puts
+inside an obstacle. Phases (000): initial scan -> wall scan -> find exit -> go to the exit -> pass
+through -> done, or gave up with the reason.
+"""
+import dataclasses
+import enum
+import math
+from typing import List, Optional, Tuple
+
+
+class State(enum.Enum):
+    START = "START"
+    IDLE = "IDLE"
+    GOAL = "GOAL"
+    LOST = "LOST"
+    RECOVER = "RECOVER"
+
+
+class Phase(enum.Enum):
+    WAITING = "waiting"              # not started, or stopped
+    INITIAL_SCAN = "initial_scan"
+    WALL_SCAN = "wall_scan"
+    FIND_EXIT = "find_exit"
+    GO_TO_EXIT = "go_to_exit"
+    PASS_THROUGH = "pass_through"
+    RETURN_TO_START = "return_to_start"
+    DONE = "done"
+    GAVE_UP = "gave_up"
+
+    @property
+    def final(self):
+        return self in (Phase.DONE, Phase.GAVE_UP)
+
+
+class ActionKind(enum.Enum):
+    SCAN = "scan"            # payload: scan name ("initial", "wall", "random")
+    FIND_EXIT = "find_exit"  # ask the exit finder for an estimate
+    GOAL = "goal"            # payload: (x, y) in the map frame
+    CANCEL_GOAL = "cancel_goal"
+    STOP = "stop"            # zero velocity / no further drone command
+    RECOVER_MOTION = "recover_motion"  # a small turn to merge maps or leave an occupied cell
+
+
+@dataclasses.dataclass(frozen=True)
+class Action:
+    kind: ActionKind
+    payload: object = None
+
+
+@dataclasses.dataclass
+class Observation:
+    """What the conductor knows at one tick; the node fills it from its topics."""
+
+    time_s: float
+    tracking_ok: bool = False
+    map_ready: bool = False              # a grid with free cells around the robot exists
+    robot_xy: Optional[Tuple[float, float]] = None
+    robot_in_obstacle: bool = False
+    scan_running: bool = False
+    scan_failed: bool = False            # the last scan ended with too many soft fails
+    exit_xy: Optional[Tuple[float, float]] = None  # the newest answer of the exit finder
+    exit_answered: bool = False          # the exit finder answered since the last request
+    navigator_state: str = ""            # navigator/status state name, lower case
+    start_requested: bool = False
+    stop_requested: bool = False
+    return_requested: bool = False
+
+
+@dataclasses.dataclass
+class ConductorConfig:
+    """Mission limits; defaults written once here."""
+
+    wall_scan: bool = True               # 000's second scan phase after the initial scan
+    max_scan_rounds: int = 3             # initial scans without a map before giving up
+    max_exit_attempts: int = 3           # exit finder answers without an exit before giving up
+    exit_answer_timeout_s: float = 20.0  # no answer from the exit finder in this time: retry
+    max_goal_failures: int = 3           # navigator no_path/goal_in_obstacle answers per goal
+    goal_failure_grace_s: float = 10.0   # a failure must last this long to count (replanning)
+    pass_through_m: float = 1.0          # beyond the exit, away from the room
+    reached_tolerance_m: float = 0.4     # the navigator's "reached" or this close counts
+    lost_timeout_s: float = 60.0         # tracking lost longer than this: gave up
+    recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
+
+    def validate(self):
+        for name in ("max_scan_rounds", "max_exit_attempts", "max_goal_failures"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
+                     "lost_timeout_s", "recover_timeout_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be finite and > 0, got {value}")
+        if not (math.isfinite(self.pass_through_m) and self.pass_through_m >= 0):
+            raise ValueError(f"pass_through_m must be finite and >= 0, got {self.pass_through_m}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Transition:
+    time_s: float
+    state: State
+    phase: Phase
+    reason: str
+
+
+_FAILED_NAVIGATION = ("no_path", "goal_in_obstacle")
+
+
+class Conductor:
+    """Decides the mission's next actions from observations; see the module docstring."""
+
+    def __init__(self, config=None):
+        self.config = config or ConductorConfig()
+        self.config.validate()
+        self.state = State.IDLE
+        self.phase = Phase.WAITING
+        self.reason = "waiting for start"
+        self.history: List[Transition] = []
+        self.start_xy: Optional[Tuple[float, float]] = None
+        self.exit_xy: Optional[Tuple[float, float]] = None
+        self.goal_xy: Optional[Tuple[float, float]] = None
+        self._resume_state = State.IDLE
+        self._scan_rounds = 0
+        self._exit_attempts = 0
+        self._exit_requested_s = None
+        self._goal_failures = 0
+        self._failure_since_s = None
+        self._lost_since_s = None
+        self._recover_since_s = None
+        self._scan_started = False
+
+    def _set(self, time_s, state, phase, reason):
+        if (state, phase, reason) != (self.state, self.phase, self.reason):
+            self.state, self.phase, self.reason = state, phase, reason
+            self.history.append(Transition(time_s, state, phase, reason))
+
+    @property
+    def running(self):
+        return self.phase not in (Phase.WAITING, Phase.DONE, Phase.GAVE_UP)
+
+    def update(self, obs: Observation) -> List[Action]:
+        """One tick: the actions to carry out now (often none)."""
+        t = obs.time_s
+        if obs.stop_requested:
+            if self.running:
+                self._set(t, State.IDLE, Phase.WAITING, "stopped on request")
+                return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
+            return []
+        if obs.start_requested and not self.running:
+            self._begin(t, obs)
+            return [Action(ActionKind.SCAN, "initial")]
+        if not self.running:
+            return []
+        if obs.return_requested and self.start_xy is not None:
+            return self._navigate(t, Phase.RETURN_TO_START, self.start_xy, "return to start requested")
+
+        safety = self._safety(t, obs)
+        if safety is not None:
+            return safety
+        if self.state == State.START:
+            return self._start_state(t, obs)
+        if self.phase == Phase.FIND_EXIT:
+            return self._find_exit(t, obs)
+        if self.state == State.GOAL:
+            return self._goal_state(t, obs)
+        return []
+
+    def _begin(self, t, obs):
+        self.start_xy = obs.robot_xy
+        self.exit_xy = self.goal_xy = None
+        self._scan_rounds = 1
+        self._exit_attempts = 0
+        self._scan_started = False
+        self._set(t, State.START, Phase.INITIAL_SCAN, "mission started: initial scan")
+
+    def _give_up(self, t, why):
+        self._set(t, State.IDLE, Phase.GAVE_UP, why)
+        return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
+
+    def _safety(self, t, obs):
+        """LOST and RECOVER take over from any state; None when neither applies."""
+        cfg = self.config
+        if not obs.tracking_ok:
+            if self.state != State.LOST:
+                self._resume_state = self.state
+                self._lost_since_s = t
+                self._set(t, State.LOST, self.phase, "SLAM tracking lost: motion stopped")
+                return [Action(ActionKind.STOP)]
+            if t - self._lost_since_s > cfg.lost_timeout_s:
+                return self._give_up(t, f"SLAM tracking lost for more than {cfg.lost_timeout_s:g} s")
+            return []
+        if self.state == State.LOST:
+            self._set(t, self._resume_state, self.phase, "SLAM tracking back")
+            if self._resume_state == State.GOAL and self.goal_xy is not None:
+                return [Action(ActionKind.GOAL, self.goal_xy)]  # re-sent: the map may be new
+            if self._resume_state == State.START and not obs.scan_running:
+                self._scan_started = False
+                return [Action(ActionKind.SCAN, "initial" if self.phase == Phase.INITIAL_SCAN
+                               else "wall")]
+            return []
+        if obs.map_ready and obs.robot_in_obstacle and not obs.scan_running:
+            if self.state != State.RECOVER:
+                self._resume_state = self.state
+                self._recover_since_s = t
+                self._set(t, State.RECOVER, self.phase, "the map puts the robot inside an obstacle")
+                return [Action(ActionKind.STOP), Action(ActionKind.RECOVER_MOTION)]
+            if t - self._recover_since_s > cfg.recover_timeout_s:
+                return self._give_up(t, f"inside an obstacle for more than {cfg.recover_timeout_s:g} s")
+            return []
+        if self.state == State.RECOVER:
+            self._set(t, self._resume_state, self.phase, "the robot's cell is free again")
+            if self._resume_state == State.GOAL and self.goal_xy is not None:
+                return [Action(ActionKind.GOAL, self.goal_xy)]
+        return None
+
+    def _start_state(self, t, obs):
+        cfg = self.config
+        if obs.scan_running:
+            self._scan_started = True
+            return []
+        if not self._scan_started:
+            return []  # the scan was asked for and has not begun yet
+        self._scan_started = False
+        if self.phase == Phase.INITIAL_SCAN:
+            if obs.map_ready and not obs.scan_failed:
+                if cfg.wall_scan:
+                    self._set(t, State.START, Phase.WALL_SCAN, "initial scan done: wall scan")
+                    return [Action(ActionKind.SCAN, "wall")]
+                return self._ask_exit(t, "initial scan done: find the exit")
+            if self._scan_rounds >= cfg.max_scan_rounds:
+                return self._give_up(t, f"no navigable map after {self._scan_rounds} scans")
+            self._scan_rounds += 1
+            why = "scan failed" if obs.scan_failed else "no navigable map yet"
+            self._set(t, State.START, Phase.INITIAL_SCAN, f"{why}: scan again "
+                      f"({self._scan_rounds}/{cfg.max_scan_rounds})")
+            return [Action(ActionKind.SCAN, "initial" if self._scan_rounds % 2 else "random")]
+        return self._ask_exit(t, "wall scan done: find the exit")
+
+    def _ask_exit(self, t, why):
+        self._exit_attempts += 1
+        self._exit_requested_s = t
+        self._set(t, State.IDLE, Phase.FIND_EXIT, why)
+        return [Action(ActionKind.FIND_EXIT)]
+
+    def _find_exit(self, t, obs):
+        cfg = self.config
+        if obs.exit_answered and obs.exit_xy is not None:
+            self.exit_xy = tuple(obs.exit_xy)
+            return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
+                                  f"exit found at ({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
+        timed_out = t - self._exit_requested_s > cfg.exit_answer_timeout_s
+        if not (obs.exit_answered or timed_out):
+            return []
+        why = "no exit in the map" if obs.exit_answered else "the exit finder did not answer"
+        if self._exit_attempts >= cfg.max_exit_attempts:
+            return self._give_up(t, f"{why} after {self._exit_attempts} attempts")
+        self._set(t, State.START, Phase.WALL_SCAN, f"{why}: scan more")
+        self._scan_started = False
+        return [Action(ActionKind.SCAN, "random")]
+
+    def _navigate(self, t, phase, goal_xy, why):
+        self.goal_xy = tuple(goal_xy)
+        self._goal_failures = 0
+        self._failure_since_s = None
+        self._set(t, State.GOAL, phase, why)
+        return [Action(ActionKind.GOAL, self.goal_xy)]
+
+    def _goal_state(self, t, obs):
+        cfg = self.config
+        near = (obs.robot_xy is not None and self.goal_xy is not None
+                and math.dist(obs.robot_xy, self.goal_xy) <= cfg.reached_tolerance_m)
+        if obs.navigator_state == "reached" or near:
+            if self.phase == Phase.GO_TO_EXIT:
+                target = self._beyond_exit()
+                return self._navigate(t, Phase.PASS_THROUGH, target, "at the exit: pass through")
+            self._set(t, State.IDLE, Phase.DONE, "passed through the exit" if self.phase ==
+                      Phase.PASS_THROUGH else "back at the start")
+            return [Action(ActionKind.STOP)]
+        if obs.navigator_state in _FAILED_NAVIGATION:
+            if self._failure_since_s is None:
+                self._failure_since_s = t
+            elif t - self._failure_since_s > cfg.goal_failure_grace_s:
+                self._goal_failures += 1
+                self._failure_since_s = None
+                if self._goal_failures >= cfg.max_goal_failures:
+                    if self.phase == Phase.GO_TO_EXIT and self._exit_attempts < cfg.max_exit_attempts:
+                        return self._ask_exit(t, f"navigator: {obs.navigator_state} to the exit; "
+                                              "look for it again")
+                    return self._give_up(t, f"navigator: {obs.navigator_state} "
+                                         f"{self._goal_failures} times")
+                return [Action(ActionKind.GOAL, self.goal_xy)]
+        else:
+            self._failure_since_s = None
+        return []
+
+    def _beyond_exit(self):
+        """A point pass_through_m past the exit, on the line from the start through the exit."""
+        ex, ey = self.exit_xy
+        sx, sy = self.start_xy if self.start_xy is not None else (0.0, 0.0)
+        dx, dy = ex - sx, ey - sy
+        norm = math.hypot(dx, dy)
+        if norm < 1e-9:
+            return (ex, ey)
+        k = self.config.pass_through_m / norm
+        return (ex + k * dx, ey + k * dy)

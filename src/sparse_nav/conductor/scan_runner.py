@@ -1,0 +1,78 @@
+"""Seed 000's retry mechanism around a scan, ROS-free.
+
+Every step that succeeds is remembered. A step after which the pose is unknown (a soft fail) is
+undone and executed again, slower. After ``max_soft_fails`` soft fails in a row the runner also
+undoes the last step that succeeded, so the robot goes back to where tracking last worked. After
+``max_total_fails`` soft fails the scan has failed.
+"""
+import dataclasses
+from typing import List, Optional, Tuple
+
+from sparse_nav.scanning import Step
+
+
+@dataclasses.dataclass
+class ScanRunnerConfig:
+    slow_factor: float = 0.5      # speed of a retried step relative to the one before
+    min_speed_factor: float = 0.25
+    max_soft_fails: int = 2       # in a row, before the last success is undone too
+    max_total_fails: int = 8      # over the whole scan, before it is given up
+
+    def validate(self):
+        if not 0 < self.min_speed_factor <= self.slow_factor <= 1:
+            raise ValueError("need 0 < min_speed_factor <= slow_factor <= 1")
+        if self.max_soft_fails < 1 or self.max_total_fails < 1:
+            raise ValueError("max_soft_fails and max_total_fails must be >= 1")
+
+
+class ScanRunner:
+    """Hands out (step, speed factor) one at a time; the caller reports how each went."""
+
+    def __init__(self, steps: List[Step], config=None):
+        self.config = config or ScanRunnerConfig()
+        self.config.validate()
+        self._todo: List[Tuple[Step, float, bool]] = [(s, 1.0, True) for s in reversed(steps)]
+        self._current: Optional[Tuple[Step, float, bool]] = None
+        self.succeeded: List[Step] = []
+        self.soft_fails = 0
+        self.total_fails = 0
+        self.failed = False
+
+    @property
+    def done(self):
+        return self.failed or (not self._todo and self._current is None)
+
+    def next_step(self):
+        """The next (step, speed_factor), or None when the scan is over (see ``failed``)."""
+        if self._current is not None:
+            raise RuntimeError("report() the step in progress first")
+        if self.done:
+            return None
+        self._current = self._todo.pop()
+        return self._current[0], self._current[1]
+
+    def report(self, pose_known: bool):
+        """After the step from next_step(): pose_known False is a soft fail."""
+        if self._current is None:
+            raise RuntimeError("no step in progress")
+        step, speed, counts = self._current
+        self._current = None
+        if pose_known:
+            if counts:  # an undo step neither ends a run of fails nor becomes part of the scan
+                self.soft_fails = 0
+                self.succeeded.append(step)
+            return
+        self.soft_fails += 1
+        self.total_fails += 1
+        if self.total_fails >= self.config.max_total_fails:
+            self.failed = True
+            return
+        slower = max(self.config.min_speed_factor, speed * self.config.slow_factor)
+        retry = [(step.undo(), slower, False), (step, slower, counts)]
+        if self.soft_fails >= self.config.max_soft_fails and self.succeeded:
+            last = self.succeeded.pop()
+            # Back past the last success, then do it again, then the failing step.
+            retry = [(step.undo(), slower, False), (last.undo(), slower, False),
+                     (last, slower, True), (step, slower, counts)]
+            self.soft_fails = 0
+        self._todo.extend(reversed(retry))

@@ -1,0 +1,230 @@
+"""The conductor's automaton and the scan retry mechanism, without ROS."""
+import pytest
+
+from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, Phase,
+                                  ScanRunner, ScanRunnerConfig, State)
+from sparse_nav.scanning import Step
+
+
+def kinds(actions):
+    return [a.kind for a in actions]
+
+
+class Mission:
+    """Drives a Conductor through ticks with a mutable observation."""
+
+    def __init__(self, config=None):
+        self.conductor = Conductor(config)
+        self.t = 0.0
+        self.obs = Observation(time_s=0.0, tracking_ok=True, robot_xy=(0.0, 0.0))
+
+    def tick(self, dt=1.0, **changes):
+        self.t += dt
+        for key, value in changes.items():
+            setattr(self.obs, key, value)
+        self.obs.time_s = self.t
+        actions = self.conductor.update(self.obs)
+        self.obs.start_requested = self.obs.stop_requested = self.obs.return_requested = False
+        self.obs.exit_answered = False
+        return actions
+
+    def run_scan(self, map_ready=True, failed=False):
+        self.tick(scan_running=True)
+        return self.tick(scan_running=False, map_ready=map_ready, scan_failed=failed)
+
+
+def test_the_whole_mission_in_order():
+    m = Mission()
+    assert m.conductor.state == State.IDLE and m.conductor.phase == Phase.WAITING
+    assert m.tick() == []  # nothing before start
+    actions = m.tick(start_requested=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "initial")]
+    assert m.conductor.state == State.START
+    actions = m.run_scan()
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "wall")]
+    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
+    assert m.conductor.phase == Phase.FIND_EXIT
+    actions = m.tick(exit_answered=True, exit_xy=(3.0, 4.0))
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (3.0, 4.0))]
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
+    assert m.tick(navigator_state="following") == []
+    actions = m.tick(navigator_state="reached")
+    assert m.conductor.phase == Phase.PASS_THROUGH
+    beyond = actions[0].payload  # 1 m further along start -> exit
+    assert beyond == pytest.approx((3.6, 4.8))
+    m.tick(navigator_state="following")
+    assert kinds(m.tick(robot_xy=(3.5, 4.7))) == [ActionKind.STOP]  # within tolerance
+    assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
+    phases = [tr.phase for tr in m.conductor.history]
+    assert phases == [Phase.INITIAL_SCAN, Phase.WALL_SCAN, Phase.FIND_EXIT, Phase.GO_TO_EXIT,
+                      Phase.PASS_THROUGH, Phase.DONE]
+    assert all(tr.reason for tr in m.conductor.history)
+
+
+def test_no_map_after_the_scan_rounds_gives_up_with_the_reason():
+    m = Mission(ConductorConfig(max_scan_rounds=2))
+    m.tick(start_requested=True)
+    actions = m.run_scan(map_ready=False)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
+    actions = m.run_scan(map_ready=False)
+    assert ActionKind.STOP in kinds(actions)
+    assert m.conductor.phase == Phase.GAVE_UP
+    assert "no navigable map after 2 scans" in m.conductor.reason
+
+
+def test_no_exit_scans_more_then_gives_up():
+    m = Mission(ConductorConfig(wall_scan=False, max_exit_attempts=2))
+    m.tick(start_requested=True)
+    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
+    actions = m.tick(exit_answered=True, exit_xy=None)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
+    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
+    m.tick(exit_answered=True, exit_xy=None)
+    assert m.conductor.phase == Phase.GAVE_UP
+    assert "no exit in the map after 2 attempts" in m.conductor.reason
+
+
+def test_a_silent_exit_finder_times_out():
+    m = Mission(ConductorConfig(wall_scan=False, exit_answer_timeout_s=5.0, max_exit_attempts=1))
+    m.tick(start_requested=True)
+    m.run_scan()
+    assert m.tick(dt=3.0) == []
+    m.tick(dt=3.0)
+    assert m.conductor.phase == Phase.GAVE_UP
+    assert "did not answer" in m.conductor.reason
+
+
+def test_tracking_loss_stops_then_resumes_the_goal():
+    m = Mission(ConductorConfig(wall_scan=False))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    assert kinds(m.tick(tracking_ok=False)) == [ActionKind.STOP]
+    assert m.conductor.state == State.LOST
+    assert m.tick(tracking_ok=False) == []
+    actions = m.tick(tracking_ok=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (5.0, 0.0))]
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
+
+
+def test_lost_for_too_long_gives_up():
+    m = Mission(ConductorConfig(lost_timeout_s=10.0))
+    m.tick(start_requested=True)
+    m.tick(tracking_ok=False)
+    m.tick(dt=5.0)
+    assert m.conductor.state == State.LOST
+    m.tick(dt=6.0)
+    assert m.conductor.phase == Phase.GAVE_UP and "lost" in m.conductor.reason
+
+
+def test_loss_during_a_scan_asks_for_the_scan_again():
+    m = Mission()
+    m.tick(start_requested=True)
+    m.tick(scan_running=True)
+    m.tick(tracking_ok=False, scan_running=False)
+    actions = m.tick(tracking_ok=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "initial")]
+    assert m.conductor.phase == Phase.INITIAL_SCAN
+
+
+def test_robot_inside_an_obstacle_recovers():
+    m = Mission(ConductorConfig(wall_scan=False))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    actions = m.tick(robot_in_obstacle=True)
+    assert kinds(actions) == [ActionKind.STOP, ActionKind.RECOVER_MOTION]
+    assert m.conductor.state == State.RECOVER
+    actions = m.tick(robot_in_obstacle=False)
+    assert m.conductor.state == State.GOAL
+    assert kinds(actions) == [ActionKind.GOAL]
+
+
+def test_navigator_failures_count_after_a_grace_time_and_refind_the_exit():
+    m = Mission(ConductorConfig(wall_scan=False, goal_failure_grace_s=2.0, max_goal_failures=2))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    assert m.tick(navigator_state="no_path") == []
+    assert m.tick(navigator_state="following") == []  # a replan fixed it: no count
+    m.tick(navigator_state="no_path")
+    assert kinds(m.tick(dt=3.0)) == [ActionKind.GOAL]  # first failure: goal sent again
+    m.tick()
+    assert kinds(m.tick(dt=3.0)) == [ActionKind.FIND_EXIT]
+    assert m.conductor.phase == Phase.FIND_EXIT
+
+
+def test_stop_and_return_to_start():
+    m = Mission(ConductorConfig(wall_scan=False))
+    m.tick(start_requested=True, robot_xy=(1.0, 2.0))
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), robot_xy=(3.0, 1.0))
+    actions = m.tick(return_requested=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (1.0, 2.0))]
+    assert m.conductor.phase == Phase.RETURN_TO_START
+    m.tick(navigator_state="reached")
+    assert m.conductor.phase == Phase.DONE and m.conductor.reason == "back at the start"
+    m2 = Mission()
+    m2.tick(start_requested=True)
+    assert kinds(m2.tick(stop_requested=True)) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert (m2.conductor.phase, m2.conductor.reason) == (Phase.WAITING, "stopped on request")
+    assert m2.tick(stop_requested=True) == []
+
+
+def test_bad_config_is_refused():
+    with pytest.raises(ValueError, match="max_scan_rounds"):
+        Conductor(ConductorConfig(max_scan_rounds=0))
+    with pytest.raises(ValueError, match="lost_timeout_s"):
+        Conductor(ConductorConfig(lost_timeout_s=float("nan")))
+
+
+def run(runner, outcomes):
+    """Executes a runner with the given pose_known outcomes (then True); returns the steps done."""
+    done = []
+    outcomes = list(outcomes)
+    while True:
+        item = runner.next_step()
+        if item is None:
+            return done
+        done.append(item)
+        runner.report(outcomes.pop(0) if outcomes else True)
+
+
+def test_scan_runner_without_fails_runs_the_steps_at_full_speed():
+    steps = [Step(forward_m=0.3), Step(ccw_deg=-30.0)]
+    runner = ScanRunner(steps)
+    assert run(runner, []) == [(steps[0], 1.0), (steps[1], 1.0)]
+    assert runner.succeeded == steps and not runner.failed
+
+
+def test_a_soft_fail_undoes_the_step_and_redoes_it_slower():
+    a, b = Step(forward_m=0.3), Step(left_m=0.3, ccw_deg=20.0)
+    done = run(ScanRunner([a, b]), [True, False])
+    assert done == [(a, 1.0), (b, 1.0), (b.undo(), 0.5), (b, 0.5)]
+    assert b.undo().undo() == b  # undoing an undo is the step itself
+
+
+def test_repeated_soft_fails_also_undo_the_last_success():
+    a, b = Step(forward_m=0.3), Step(ccw_deg=30.0)
+    runner = ScanRunner([a, b], ScanRunnerConfig(max_soft_fails=2))
+    done = run(runner, [True, False, True, False])
+    assert done[:4] == [(a, 1.0), (b, 1.0), (b.undo(), 0.5), (b, 0.5)]
+    assert done[4:] == [(b.undo(), 0.25), (a.undo(), 0.25), (a, 0.25), (b, 0.25)]
+    assert runner.succeeded == [a, b]
+
+
+def test_too_many_soft_fails_fail_the_scan():
+    runner = ScanRunner([Step(forward_m=0.3)], ScanRunnerConfig(max_total_fails=3))
+    run(runner, [False, True, False, True, False])
+    assert runner.failed and runner.done and runner.next_step() is None
+
+
+def test_scan_runner_protocol_errors():
+    runner = ScanRunner([Step(forward_m=0.3)])
+    with pytest.raises(RuntimeError):
+        runner.report(True)
+    runner.next_step()
+    with pytest.raises(RuntimeError):
+        runner.next_step()
+    with pytest.raises(ValueError):
+        ScanRunner([], ScanRunnerConfig(slow_factor=0.0))

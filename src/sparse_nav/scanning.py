@@ -66,6 +66,86 @@ def initial_scan(config=None):
     return steps
 
 
+
+@dataclasses.dataclass
+class WallScanConfig:
+    """Sizes of the seed 000 wall scan and its random variant; defaults written once here."""
+
+    standoff_m: float = 0.6     # stop this far before a wall (the seed goes until it "hits")
+    min_move_m: float = 0.2     # shorter approaches are skipped (the Tello's smallest move)
+    max_move_m: float = 3.0
+    circle_turn_deg: float = 45.0
+    circle_sway_m: float = 0.2  # forward, then back, with every turn: parallax while turning
+
+    def validate(self):
+        if not 0 < self.circle_turn_deg <= 180:
+            raise ValueError(f"circle_turn_deg must be in (0, 180], got {self.circle_turn_deg}")
+        if not 0 < self.min_move_m <= self.max_move_m:
+            raise ValueError("need 0 < min_move_m <= max_move_m")
+        for name in ("standoff_m", "circle_sway_m"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0")
+
+
+def circular_scan(config=None):
+    """Seed 000 step 2b: a full circle of turns, each with a short sway forward and back."""
+    cfg = config or WallScanConfig()
+    cfg.validate()
+    steps, turned = [], 0.0
+    while turned < 360.0 - 1e-9:
+        turn = min(cfg.circle_turn_deg, 360.0 - turned)
+        if cfg.circle_sway_m:
+            steps += [Step(forward_m=cfg.circle_sway_m), Step(forward_m=-cfg.circle_sway_m)]
+        steps.append(Step(ccw_deg=-turn))
+        turned += turn
+    return steps
+
+
+def _approach(bearing_deg, free_m, cfg):
+    """Turn to a bearing, go up to the wall, scan a circle there, come back and turn back."""
+    distance = min(free_m - cfg.standoff_m, cfg.max_move_m)
+    if distance < cfg.min_move_m:
+        return []
+    turn = Step(ccw_deg=bearing_deg) if abs(bearing_deg) >= 1.0 else None
+    go = Step(forward_m=distance)
+    steps = ([turn] if turn else []) + [go] + circular_scan(cfg) + [go.undo()]
+    return steps + ([turn.undo()] if turn else [])
+
+
+def wall_scan(free_distances, config=None):
+    """Seed 000 step 2: for each wall, go to it and scan a circle; back to the start after each.
+
+    free_distances: (bearing_deg counter-clockwise from the current heading, free distance m to
+    the wall in that direction), e.g. measured on the occupancy grid. Walls too close are skipped.
+    """
+    cfg = config or WallScanConfig()
+    cfg.validate()
+    steps = []
+    for bearing_deg, free_m in free_distances:
+        if math.isfinite(bearing_deg) and math.isfinite(free_m):
+            steps += _approach(math.remainder(bearing_deg, 360.0), free_m, cfg)
+    return steps
+
+
+def random_scan(rng, free_distance, config=None):
+    """One round of seed 000's randomised variant: a random move, then a circular scan.
+
+    rng: a numpy Generator (seeded by the caller); free_distance(bearing_deg) -> free metres from
+    the current position along that bearing, so the move never aims into a near wall (without
+    room for a move the robot only scans). The robot stays where it went: the next round scans
+    from there.
+    """
+    cfg = config or WallScanConfig()
+    cfg.validate()
+    bearing = float(rng.uniform(-180.0, 180.0))
+    room = min(free_distance(bearing) - cfg.standoff_m, cfg.max_move_m)
+    steps = []
+    if room >= cfg.min_move_m:
+        distance = round(float(rng.uniform(cfg.min_move_m, room)), 2)
+        steps = [Step(ccw_deg=round(bearing)), Step(forward_m=distance)]
+    return steps + circular_scan(cfg)
+
+
 def _tello_move(value_cm, positive, negative):
     return f"{positive if value_cm > 0 else negative} {abs(value_cm)}"
 

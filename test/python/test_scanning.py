@@ -4,8 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from sparse_nav.scanning import (InitialScanConfig, Step, initial_scan, to_tello_commands,
-                                 to_velocity_segments)
+from sparse_nav.scanning import (InitialScanConfig, Step, WallScanConfig, circular_scan,
+                                 initial_scan, random_scan, to_tello_commands,
+                                 to_velocity_segments, wall_scan)
 
 
 def test_initial_scan_turns_a_full_circle_and_returns_each_iteration():
@@ -43,3 +44,34 @@ def test_velocity_segments_reproduce_the_steps_on_a_unicycle():
 def test_bad_config():
     with pytest.raises(ValueError):
         initial_scan(InitialScanConfig(turn_deg=0))
+
+
+def test_circular_scan_turns_once_round_in_place():
+    steps = circular_scan(WallScanConfig(circle_turn_deg=45.0, circle_sway_m=0.2))
+    assert sum(s.ccw_deg for s in steps) == pytest.approx(-360.0)
+    assert sum(s.forward_m for s in steps) == pytest.approx(0.0)
+    assert sum(1 for s in steps if s.ccw_deg) == 8
+    to_tello_commands(steps)  # every move is a valid Tello command
+
+
+def test_wall_scan_visits_each_wall_it_has_room_for_and_comes_back():
+    cfg = WallScanConfig(standoff_m=0.5, min_move_m=0.2, max_move_m=2.0)
+    steps = wall_scan([(0.0, 1.5), (90.0, 0.6), (180.0, 9.0), (float("nan"), 3.0)], cfg)
+    forwards = [s.forward_m for s in steps if s.forward_m > 0.25]
+    # 1.5 - 0.5 = 1.0 m; the 0.6 m wall leaves too little room; the far wall is capped at 2 m.
+    assert forwards == [pytest.approx(1.0), pytest.approx(2.0)]
+    assert sum(s.forward_m for s in steps) == pytest.approx(0.0)
+    assert sum(s.ccw_deg for s in steps) == pytest.approx(-720.0)  # two circles, turns undone
+    to_tello_commands(steps)
+
+
+def test_random_scan_is_seeded_and_respects_the_free_distance():
+    free = lambda bearing: 2.0  # noqa: E731
+    a = random_scan(np.random.default_rng(3), free)
+    b = random_scan(np.random.default_rng(3), free)
+    assert a == b
+    assert 0.2 <= a[1].forward_m <= 1.4 + 1e-9 and a[0].ccw_deg != 0.0
+    boxed_in = random_scan(np.random.default_rng(3), lambda bearing: 0.5)
+    assert boxed_in == circular_scan()  # no room to move: only the circle
+    with pytest.raises(ValueError):
+        circular_scan(WallScanConfig(circle_turn_deg=0.0))

@@ -23,7 +23,8 @@ from sparse_nav.msg import FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, transform_to_matrix
 from sparse_nav.ros.sim_node import load_ros_world
-from sparse_nav.scanning import initial_scan, to_tello_commands, to_velocity_segments
+from sparse_nav.ros.robot_io import StepExecutor, TelloClient
+from sparse_nav.scanning import initial_scan
 from sparse_nav.summary import plot_grid, plot_summary
 
 RECORDED = [
@@ -74,8 +75,6 @@ class DemoNode:
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         for topic, msg_type in RECORDED:
             rospy.Subscriber(topic, msg_type, self._record, callback_args=topic, queue_size=50)
-        self.cmd_pub = rospy.Publisher("cmd_vel", Twist, queue_size=10)
-        self.tello_pub = rospy.Publisher("tello/command", String, queue_size=10)
 
     def _record(self, msg, topic):
         with self.lock:
@@ -105,39 +104,20 @@ class DemoNode:
         t = tf.transform.translation
         self.estimated_path.append((t.x, t.y))
 
-    def _tello(self, command):
-        with self.lock:
-            before = len(self.responses)
-        self.tello_pub.publish(String(data=command))
-        deadline = rospy.Time.now() + rospy.Duration(self.response_timeout_s)
-        while not rospy.is_shutdown() and rospy.Time.now() < deadline:
-            with self.lock:
-                if len(self.responses) > before:
-                    return self.responses[before]
-            self._sample_estimate()
-            rospy.sleep(0.1)
-        return "timeout"
-
     def run_scan(self):
         self._wait_for_clock()
         rospy.sleep(1.0)  # let every node subscribe before the first motion
-        steps = initial_scan()
-        if self.robot == "drone":
-            for command in ["command", "takeoff"] + to_tello_commands(steps):
-                answer = self._tello(command)
-                rospy.loginfo("demo: %s -> %s", command, answer)
-            self._tello("land")
-        else:
-            rate = rospy.Rate(20)
-            for v, w, duration in to_velocity_segments(steps):
-                end = rospy.Time.now() + rospy.Duration(duration)
-                while not rospy.is_shutdown() and rospy.Time.now() < end:
-                    cmd = Twist()
-                    cmd.linear.x, cmd.angular.z = v, w
-                    self.cmd_pub.publish(cmd)
-                    self._sample_estimate()
-                    rate.sleep()
-            self.cmd_pub.publish(Twist())
+        tello = (TelloClient(self.response_timeout_s, on_wait=self._sample_estimate)
+                 if self.robot == "drone" else None)
+        executor = StepExecutor(self.robot, tello=tello, on_wait=self._sample_estimate)
+        if tello is not None:
+            for command in ("command", "takeoff"):
+                rospy.loginfo("demo: %s -> %s", command, tello.send(command))
+        for step in initial_scan():
+            if not executor.execute(step):
+                rospy.logwarn("demo: step %s was not carried out completely", step)
+        if tello is not None:
+            rospy.loginfo("demo: land -> %s", tello.send("land"))
         rospy.sleep(1.0)
 
     def write_outputs(self):

@@ -1,0 +1,101 @@
+"""Carrying out scan Steps on a robot: Tello commands or cmd_vel segments (rospy glue)."""
+import threading
+
+import rospy
+from geometry_msgs.msg import Twist
+from std_msgs.msg import String
+
+from sparse_nav.scanning import to_tello_commands, to_velocity_segments
+
+TELLO_SPEED_CM_S = 100  # the sim's and the SDK's top speed; retries go slower from here
+TELLO_MIN_SPEED_CM_S = 10
+
+
+class TelloClient:
+    """Sends SDK commands on tello/command one at a time and waits (sim time) for each answer.
+
+    The Tello answers in order and without an id, so only one command may be in flight.
+    """
+
+    def __init__(self, timeout_s=30.0, on_wait=None):
+        self.timeout_s = timeout_s
+        self.on_wait = on_wait
+        self._lock = threading.Lock()
+        self._responses = []
+        self._busy = threading.Lock()
+        self._sub = rospy.Subscriber("tello/response", String, self._on_response, queue_size=20)
+        self._pub = rospy.Publisher("tello/command", String, queue_size=10)
+
+    def _on_response(self, msg):
+        with self._lock:
+            self._responses.append(msg.data)
+
+    def send(self, text):
+        """The drone's answer ("ok", "error: ..."), or "timeout"."""
+        with self._busy:
+            with self._lock:
+                before = len(self._responses)
+            self._pub.publish(String(data=text))
+            deadline = rospy.Time.now() + rospy.Duration(self.timeout_s)
+            while not rospy.is_shutdown() and rospy.Time.now() < deadline:
+                with self._lock:
+                    if len(self._responses) > before:
+                        return self._responses[before]
+                if self.on_wait is not None:
+                    self.on_wait()
+                rospy.sleep(0.05)
+            return "timeout"
+
+    def count(self, prefix):
+        with self._lock:
+            return sum(1 for r in self._responses if r.startswith(prefix))
+
+
+class StepExecutor:
+    """Executes one scanning.Step at a given speed factor on the drone or the ground robot."""
+
+    def __init__(self, robot, tello=None, ground_speed_m_s=0.2, ground_turn_rate_rad_s=0.5,
+                 rate_hz=20.0, on_wait=None):
+        if robot not in ("drone", "ground"):
+            raise ValueError(f"robot must be 'drone' or 'ground', got {robot!r}")
+        self.robot = robot
+        self.tello = tello if tello is not None or robot == "ground" else TelloClient()
+        self.ground_speed_m_s = ground_speed_m_s
+        self.ground_turn_rate_rad_s = ground_turn_rate_rad_s
+        self.rate_hz = rate_hz
+        self.on_wait = on_wait
+        self.cmd_pub = rospy.Publisher("cmd_vel", Twist, queue_size=10) if robot == "ground" else None
+        self._tello_speed = None
+
+    def execute(self, step, speed_factor=1.0, should_stop=lambda: False):
+        """True when every command of the step was carried out."""
+        if self.robot == "drone":
+            speed = max(TELLO_MIN_SPEED_CM_S, int(round(TELLO_SPEED_CM_S * speed_factor)))
+            if speed != self._tello_speed:
+                if self.tello.send(f"speed {speed}") != "ok":
+                    return False
+                self._tello_speed = speed
+            try:
+                commands = to_tello_commands([step])
+            except ValueError as exc:  # a move below the Tello's 20 cm: skipped, not failed
+                rospy.logdebug("step skipped: %s", exc)
+                return True
+            return all(not should_stop() and self.tello.send(c) == "ok" for c in commands)
+        rate = rospy.Rate(self.rate_hz)
+        segments = to_velocity_segments([step], speed_m_s=self.ground_speed_m_s * speed_factor,
+                                        turn_rate_rad_s=self.ground_turn_rate_rad_s * speed_factor)
+        try:
+            for v, w, duration in segments:
+                end = rospy.Time.now() + rospy.Duration(duration)
+                while not rospy.is_shutdown() and rospy.Time.now() < end:
+                    if should_stop():
+                        return False
+                    cmd = Twist()
+                    cmd.linear.x, cmd.angular.z = v, w
+                    self.cmd_pub.publish(cmd)
+                    if self.on_wait is not None:
+                        self.on_wait()
+                    rate.sleep()
+        finally:
+            self.cmd_pub.publish(Twist())
+        return True

@@ -180,6 +180,20 @@ py::array_t<std::int8_t> statesArray(const PlanningGrid& g)
   }
   return out;
 }
+
+py::array_t<bool> traversableArray(const PlanningGrid& g)
+{
+  py::array_t<bool> out({ g.height(), g.width() });
+  auto a = out.mutable_unchecked<2>();
+  for (int y = 0; y < g.height(); ++y)
+  {
+    for (int x = 0; x < g.width(); ++x)
+    {
+      a(y, x) = g.traversable(x, y);
+    }
+  }
+  return out;
+}
 }  // namespace
 
 PYBIND11_MODULE(_planning, m)
@@ -213,7 +227,9 @@ PYBIND11_MODULE(_planning, m)
             g.setStates(changesOf(g, cells));
           },
           py::arg("cells"), "Sets cells from (x, y, value) tuples with OccupancyGrid values.")
-      .def("states", &statesArray, "Cell states as an int8 array [y, x]: 0 free, 100 blocked, -1 unknown.");
+      .def("states", &statesArray, "Cell states as an int8 array [y, x]: 0 free, 100 blocked, -1 unknown.")
+      .def("traversable_mask", &traversableArray,
+           "Traversability (after the unknown policy and inflation) as a bool array [y, x].");
 
   py::class_<DStarLite>(m, "DStarLite")
       .def(py::init([](const PlanningGrid& g, const PyCell& start, const PyCell& goal) {

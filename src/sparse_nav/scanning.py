@@ -45,6 +45,24 @@ class InitialScanConfig:
                 raise ValueError(f"{name} must be >= 0")
 
 
+def sway(config=None):
+    """Steps a-d of one initial-scan iteration: back, right and back, left and back, forward.
+
+    It ends where it began and gives monocular SLAM baseline without a net turn; on its own it is
+    the conductor's relocalising motion after a loss.
+    """
+    cfg = config or InitialScanConfig()
+    cfg.validate()
+    right = Step(left_m=-cfg.side_m, ccw_deg=-cfg.look_deg)
+    left = Step(left_m=cfg.side_m, ccw_deg=cfg.look_deg)
+    return [
+        Step(forward_m=-cfg.back_m),     # a: a bit back
+        right, right.undo(),             # b: right and look right (cw); ccw and go left
+        left, left.undo(),               # c: left and look left (ccw); cw and go right
+        Step(forward_m=cfg.back_m),      # d: forward to where the iteration started
+    ]
+
+
 def initial_scan(config=None):
     """The seed 000 initial scan as a list of Steps (a, b, c, d, e per iteration until a full turn)."""
     cfg = config or InitialScanConfig()
@@ -53,28 +71,18 @@ def initial_scan(config=None):
     turned = 0.0
     while turned < cfg.full_turn_deg - 1e-9:
         turn = min(cfg.turn_deg, cfg.full_turn_deg - turned)
-        right = Step(left_m=-cfg.side_m, ccw_deg=-cfg.look_deg)
-        left = Step(left_m=cfg.side_m, ccw_deg=cfg.look_deg)
-        steps += [
-            Step(forward_m=-cfg.back_m),     # a: a bit back
-            right, right.undo(),             # b: right and look right (cw); ccw and go left
-            left, left.undo(),               # c: left and look left (ccw); cw and go right
-            Step(forward_m=cfg.back_m),      # d: forward to where the iteration started
-            Step(ccw_deg=-turn),             # e: look a bit to the right
-        ]
+        steps += sway(cfg) + [Step(ccw_deg=-turn)]   # e: look a bit to the right
         turned += turn
     return steps
-
-
 
 @dataclasses.dataclass
 class WallScanConfig:
     """Sizes of the seed 000 wall scan and its random variant; defaults written once here."""
 
-    standoff_m: float = 0.6     # stop this far before a wall (the seed goes until it "hits")
+    standoff_m: float = 1.2     # stop this far before a wall: closer, too few features are in view
     min_move_m: float = 0.2     # shorter approaches are skipped (the Tello's smallest move)
     max_move_m: float = 3.0
-    circle_turn_deg: float = 45.0
+    circle_turn_deg: float = 60.0
     circle_sway_m: float = 0.2  # forward, then back, with every turn: parallax while turning
 
     def validate(self):

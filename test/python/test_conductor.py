@@ -16,7 +16,7 @@ class Mission:
     def __init__(self, config=None):
         self.conductor = Conductor(config)
         self.t = 0.0
-        self.obs = Observation(time_s=0.0, tracking_ok=True, robot_xy=(0.0, 0.0))
+        self.obs = Observation(time_s=0.0, robot_xy=(0.0, 0.0))
 
     def tick(self, dt=1.0, **changes):
         self.t += dt
@@ -73,7 +73,7 @@ def test_no_map_after_the_scan_rounds_gives_up_with_the_reason():
 
 
 def test_no_exit_scans_more_then_gives_up():
-    m = Mission(ConductorConfig(wall_scan=False, max_exit_attempts=2))
+    m = Mission(ConductorConfig(wall_scan_enabled=False, max_exit_attempts=2))
     m.tick(start_requested=True)
     assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
     actions = m.tick(exit_answered=True, exit_xy=None)
@@ -85,7 +85,7 @@ def test_no_exit_scans_more_then_gives_up():
 
 
 def test_a_silent_exit_finder_times_out():
-    m = Mission(ConductorConfig(wall_scan=False, exit_answer_timeout_s=5.0, max_exit_attempts=1))
+    m = Mission(ConductorConfig(wall_scan_enabled=False, exit_answer_timeout_s=5.0, max_exit_attempts=1))
     m.tick(start_requested=True)
     m.run_scan()
     assert m.tick(dt=3.0) == []
@@ -94,41 +94,71 @@ def test_a_silent_exit_finder_times_out():
     assert "did not answer" in m.conductor.reason
 
 
-def test_tracking_loss_stops_then_resumes_the_goal():
-    m = Mission(ConductorConfig(wall_scan=False))
+def test_tracking_loss_stops_relocalises_then_resumes_the_goal():
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
     m.tick(start_requested=True)
     m.run_scan()
     m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
-    assert kinds(m.tick(tracking_ok=False)) == [ActionKind.STOP]
+    actions = m.tick(tracking_lost=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
+                                                      (ActionKind.SCAN, "relocalise")]
     assert m.conductor.state == State.LOST
-    assert m.tick(tracking_ok=False) == []
-    actions = m.tick(tracking_ok=True)
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (5.0, 0.0))]
+    assert m.tick(scan_running=True) == []
+    # The relocalising motion ended without tracking: it is tried again.
+    assert [(a.kind, a.payload) for a in m.tick(scan_running=False)] == [
+        (ActionKind.SCAN, "relocalise")]
+    m.tick(scan_running=True)
+    actions = m.tick(tracking_lost=False)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
+                                                      (ActionKind.GOAL, (5.0, 0.0))]
     assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
+
+
+def test_not_initialised_slam_is_not_a_loss():
+    m = Mission()
+    m.tick(start_requested=True)
+    m.tick(scan_running=True, tracking_lost=False)  # NOT_INITIALIZED is reported as not lost
+    assert m.conductor.state == State.START
 
 
 def test_lost_for_too_long_gives_up():
     m = Mission(ConductorConfig(lost_timeout_s=10.0))
     m.tick(start_requested=True)
-    m.tick(tracking_ok=False)
+    m.tick(tracking_lost=True)
     m.tick(dt=5.0)
     assert m.conductor.state == State.LOST
     m.tick(dt=6.0)
     assert m.conductor.phase == Phase.GAVE_UP and "lost" in m.conductor.reason
 
 
-def test_loss_during_a_scan_asks_for_the_scan_again():
+def test_a_loss_during_a_scan_is_left_to_the_scan_retries():
     m = Mission()
     m.tick(start_requested=True)
     m.tick(scan_running=True)
-    m.tick(tracking_ok=False, scan_running=False)
-    actions = m.tick(tracking_ok=True)
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "initial")]
+    assert m.tick(tracking_lost=True) == []
+    assert m.conductor.state == State.LOST and "retries" in m.conductor.reason
+    assert m.tick(tracking_lost=False) == []  # the scan goes on
+    assert m.conductor.state == State.START
+    assert kinds(m.tick(scan_running=False, map_ready=True)) == [ActionKind.SCAN]
+    assert m.conductor.phase == Phase.WALL_SCAN
+
+
+def test_a_scan_that_ended_while_lost_is_run_again():
+    m = Mission()
+    m.tick(start_requested=True)
+    m.tick(scan_running=True)
+    m.tick(tracking_lost=True)
+    assert [(a.kind, a.payload) for a in m.tick(scan_running=False)] == [
+        (ActionKind.SCAN, "relocalise")]
+    m.tick(scan_running=True)
+    actions = m.tick(tracking_lost=False)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
+                                                      (ActionKind.SCAN, "initial")]
     assert m.conductor.phase == Phase.INITIAL_SCAN
 
 
 def test_robot_inside_an_obstacle_recovers():
-    m = Mission(ConductorConfig(wall_scan=False))
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
     m.tick(start_requested=True)
     m.run_scan()
     m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
@@ -141,7 +171,7 @@ def test_robot_inside_an_obstacle_recovers():
 
 
 def test_navigator_failures_count_after_a_grace_time_and_refind_the_exit():
-    m = Mission(ConductorConfig(wall_scan=False, goal_failure_grace_s=2.0, max_goal_failures=2))
+    m = Mission(ConductorConfig(wall_scan_enabled=False, goal_failure_grace_s=2.0, max_goal_failures=2))
     m.tick(start_requested=True)
     m.run_scan()
     m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
@@ -155,7 +185,7 @@ def test_navigator_failures_count_after_a_grace_time_and_refind_the_exit():
 
 
 def test_stop_and_return_to_start():
-    m = Mission(ConductorConfig(wall_scan=False))
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
     m.tick(start_requested=True, robot_xy=(1.0, 2.0))
     m.run_scan()
     m.tick(exit_answered=True, exit_xy=(5.0, 0.0), robot_xy=(3.0, 1.0))

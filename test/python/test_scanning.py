@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from sparse_nav.scanning import (InitialScanConfig, Step, WallScanConfig, circular_scan,
-                                 initial_scan, random_scan, to_tello_commands,
+                                 initial_scan, random_scan, sway, to_tello_commands,
                                  to_velocity_segments, wall_scan)
 
 
@@ -75,3 +75,10 @@ def test_random_scan_is_seeded_and_respects_the_free_distance():
     assert boxed_in == circular_scan()  # no room to move: only the circle
     with pytest.raises(ValueError):
         circular_scan(WallScanConfig(circle_turn_deg=0.0))
+
+
+def test_sway_is_the_initial_scan_iteration_without_its_turn():
+    steps = sway()
+    assert steps == initial_scan()[:6]
+    assert sum(s.forward_m for s in steps) == pytest.approx(0.0)
+    assert sum(s.ccw_deg for s in steps) == pytest.approx(0.0)

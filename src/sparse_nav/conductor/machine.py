@@ -40,7 +40,7 @@ class Phase(enum.Enum):
 
 
 class ActionKind(enum.Enum):
-    SCAN = "scan"            # payload: scan name ("initial", "wall", "random")
+    SCAN = "scan"            # payload: scan name ("initial", "wall", "random", "relocalise")
     FIND_EXIT = "find_exit"  # ask the exit finder for an estimate
     GOAL = "goal"            # payload: (x, y) in the map frame
     CANCEL_GOAL = "cancel_goal"
@@ -59,7 +59,7 @@ class Observation:
     """What the conductor knows at one tick; the node fills it from its topics."""
 
     time_s: float
-    tracking_ok: bool = False
+    tracking_lost: bool = False          # SLAM lost its map (not: not initialised yet)
     map_ready: bool = False              # a grid with free cells around the robot exists
     robot_xy: Optional[Tuple[float, float]] = None
     robot_in_obstacle: bool = False
@@ -77,7 +77,7 @@ class Observation:
 class ConductorConfig:
     """Mission limits; defaults written once here."""
 
-    wall_scan: bool = True               # 000's second scan phase after the initial scan
+    wall_scan_enabled: bool = True       # 000's second scan phase after the initial scan
     max_scan_rounds: int = 3             # initial scans without a map before giving up
     max_exit_attempts: int = 3           # exit finder answers without an exit before giving up
     exit_answer_timeout_s: float = 20.0  # no answer from the exit finder in this time: retry
@@ -134,6 +134,16 @@ class Conductor:
         self._lost_since_s = None
         self._recover_since_s = None
         self._scan_started = False
+        self._scan_kind = None
+
+    def _scan(self, name):
+        """The SCAN action; _start_state waits for it to begin, then to end."""
+        self._scan_kind = name
+        self._scan_started = False
+        return Action(ActionKind.SCAN, name)
+
+    def _phase_scan(self):
+        return self._scan("initial" if self.phase == Phase.INITIAL_SCAN else "wall")
 
     def _set(self, time_s, state, phase, reason):
         if (state, phase, reason) != (self.state, self.phase, self.reason):
@@ -154,7 +164,7 @@ class Conductor:
             return []
         if obs.start_requested and not self.running:
             self._begin(t, obs)
-            return [Action(ActionKind.SCAN, "initial")]
+            return [self._scan("initial")]
         if not self.running:
             return []
         if obs.return_requested and self.start_xy is not None:
@@ -176,7 +186,6 @@ class Conductor:
         self.exit_xy = self.goal_xy = None
         self._scan_rounds = 1
         self._exit_attempts = 0
-        self._scan_started = False
         self._set(t, State.START, Phase.INITIAL_SCAN, "mission started: initial scan")
 
     def _give_up(self, t, why):
@@ -186,24 +195,34 @@ class Conductor:
     def _safety(self, t, obs):
         """LOST and RECOVER take over from any state; None when neither applies."""
         cfg = self.config
-        if not obs.tracking_ok:
+        if obs.tracking_lost:
             if self.state != State.LOST:
                 self._resume_state = self.state
                 self._lost_since_s = t
-                self._set(t, State.LOST, self.phase, "SLAM tracking lost: motion stopped")
-                return [Action(ActionKind.STOP)]
+                if self.state == State.START and obs.scan_running:
+                    # The scan's retry mechanism undoes and redoes steps until tracking is back.
+                    self._set(t, State.LOST, self.phase, "SLAM tracking lost: the scan retries")
+                    return []
+                self._set(t, State.LOST, self.phase, "SLAM tracking lost: stopped, relocalising")
+                return [Action(ActionKind.STOP), self._scan("relocalise")]
             if t - self._lost_since_s > cfg.lost_timeout_s:
                 return self._give_up(t, f"SLAM tracking lost for more than {cfg.lost_timeout_s:g} s")
+            if not obs.scan_running:
+                return [self._scan("relocalise")]
             return []
         if self.state == State.LOST:
             self._set(t, self._resume_state, self.phase, "SLAM tracking back")
+            actions = []
+            if self._scan_kind == "relocalise" and obs.scan_running:
+                actions.append(Action(ActionKind.STOP))
+                obs_scan_running = False
+            else:
+                obs_scan_running = obs.scan_running
             if self._resume_state == State.GOAL and self.goal_xy is not None:
-                return [Action(ActionKind.GOAL, self.goal_xy)]  # re-sent: the map may be new
-            if self._resume_state == State.START and not obs.scan_running:
-                self._scan_started = False
-                return [Action(ActionKind.SCAN, "initial" if self.phase == Phase.INITIAL_SCAN
-                               else "wall")]
-            return []
+                actions.append(Action(ActionKind.GOAL, self.goal_xy))  # the map may be new
+            elif self._resume_state == State.START and not obs_scan_running:
+                actions.append(self._phase_scan())
+            return actions
         if obs.map_ready and obs.robot_in_obstacle and not obs.scan_running:
             if self.state != State.RECOVER:
                 self._resume_state = self.state
@@ -229,9 +248,9 @@ class Conductor:
         self._scan_started = False
         if self.phase == Phase.INITIAL_SCAN:
             if obs.map_ready and not obs.scan_failed:
-                if cfg.wall_scan:
+                if cfg.wall_scan_enabled:
                     self._set(t, State.START, Phase.WALL_SCAN, "initial scan done: wall scan")
-                    return [Action(ActionKind.SCAN, "wall")]
+                    return [self._scan("wall")]
                 return self._ask_exit(t, "initial scan done: find the exit")
             if self._scan_rounds >= cfg.max_scan_rounds:
                 return self._give_up(t, f"no navigable map after {self._scan_rounds} scans")
@@ -239,7 +258,7 @@ class Conductor:
             why = "scan failed" if obs.scan_failed else "no navigable map yet"
             self._set(t, State.START, Phase.INITIAL_SCAN, f"{why}: scan again "
                       f"({self._scan_rounds}/{cfg.max_scan_rounds})")
-            return [Action(ActionKind.SCAN, "initial" if self._scan_rounds % 2 else "random")]
+            return [self._scan("initial" if self._scan_rounds % 2 else "random")]
         return self._ask_exit(t, "wall scan done: find the exit")
 
     def _ask_exit(self, t, why):
@@ -261,8 +280,7 @@ class Conductor:
         if self._exit_attempts >= cfg.max_exit_attempts:
             return self._give_up(t, f"{why} after {self._exit_attempts} attempts")
         self._set(t, State.START, Phase.WALL_SCAN, f"{why}: scan more")
-        self._scan_started = False
-        return [Action(ActionKind.SCAN, "random")]
+        return [self._scan("random")]
 
     def _navigate(self, t, phase, goal_xy, why):
         self.goal_xy = tuple(goal_xy)

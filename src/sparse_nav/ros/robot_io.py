@@ -23,6 +23,7 @@ class TelloClient:
         self._lock = threading.Lock()
         self._responses = []
         self._busy = threading.Lock()
+        self.last_sent = None  # rospy.Time of the last command sent
         self._sub = rospy.Subscriber("tello/response", String, self._on_response, queue_size=20)
         self._pub = rospy.Publisher("tello/command", String, queue_size=10)
 
@@ -36,6 +37,7 @@ class TelloClient:
             with self._lock:
                 before = len(self._responses)
             self._pub.publish(String(data=text))
+            self.last_sent = rospy.Time.now()
             deadline = rospy.Time.now() + rospy.Duration(self.timeout_s)
             while not rospy.is_shutdown() and rospy.Time.now() < deadline:
                 with self._lock:
@@ -46,9 +48,9 @@ class TelloClient:
                 rospy.sleep(0.05)
             return "timeout"
 
-    def count(self, prefix):
-        with self._lock:
-            return sum(1 for r in self._responses if r.startswith(prefix))
+    def idle_s(self):
+        """Seconds since the last command, or None before the first."""
+        return None if self.last_sent is None else (rospy.Time.now() - self.last_sent).to_sec()
 
 
 class StepExecutor:

@@ -1,0 +1,303 @@
+"""conductor: runs the escape mission by feeding the ROS-free Conductor and carrying out its
+actions (scans here, goals through the navigator's MoveBase action, the exit finder's service)."""
+import math
+import threading
+
+import actionlib
+import numpy as np
+import rospy
+import tf2_ros
+from actionlib_msgs.msg import GoalStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point, PoseStamped
+from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from nav_msgs.msg import OccupancyGrid
+from std_srvs.srv import Trigger, TriggerResponse
+
+from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, ScanRunner,
+                                  ScanRunnerConfig, State)
+from sparse_nav.conductor.grid_queries import GridView
+from sparse_nav.msg import ConductorState, SlamState
+from sparse_nav.ros.conversions import transform_to_matrix
+from sparse_nav.ros.robot_io import StepExecutor, TelloClient
+from sparse_nav.scanning import (InitialScanConfig, Step, WallScanConfig, initial_scan,
+                                 random_scan, sway, wall_scan)
+from sparse_nav.srv import FindExit
+
+# Navigator action states as the conductor names them.
+_NAVIGATOR_STATES = {GoalStatus.PENDING: "planning", GoalStatus.ACTIVE: "following",
+                     GoalStatus.SUCCEEDED: "reached", GoalStatus.ABORTED: "no_path",
+                     GoalStatus.REJECTED: "no_path"}
+
+
+def _dataclass_params(prefix, cls):
+    """A config dataclass filled from private parameters named like its fields."""
+    config = cls()
+    for name, default in vars(cls()).items():
+        value = rospy.get_param(f"~{prefix}{name}", default)
+        setattr(config, name, type(default)(value))
+    config.validate()
+    return config
+
+
+class ConductorNode:
+    def __init__(self):
+        self.robot = rospy.get_param("~robot", "drone")
+        self.map_frame = rospy.get_param("~map_frame", "map")
+        self.base_frame = rospy.get_param("~base_frame", "base_link")
+        self.rate_hz = float(rospy.get_param("~rate_hz", 2.0))
+        self.auto_start = bool(rospy.get_param("~auto_start", False))
+        self.min_free_cells = int(rospy.get_param("~map_ready_min_free_cells", 20))
+        self.wall_bearings_deg = [float(b) for b in rospy.get_param("~wall_bearings_deg",
+                                                                    [0.0, 90.0, 180.0, 270.0])]
+        action_name = rospy.get_param("~navigator_action", "move_base")
+        self.exit_service = rospy.get_param("~exit_service", "exit_finder/find_exit")
+        self.rng = np.random.default_rng(int(rospy.get_param("~seed", 0)))
+        self.config = _dataclass_params("", ConductorConfig)
+        self.initial_config = _dataclass_params("initial_scan/", InitialScanConfig)
+        self.wall_config = _dataclass_params("wall_scan/", WallScanConfig)
+        self.runner_config = _dataclass_params("retry/", ScanRunnerConfig)
+
+        self.conductor = Conductor(self.config)
+        self.lock = threading.Lock()
+        self.obs = Observation(time_s=0.0)
+        self.requests = {"start": self.auto_start, "stop": False, "return": False}
+        self.grid = None
+        self.took_off = False
+        self.scan_thread = None
+        self.scan_stop = threading.Event()
+        self.exit_thread = None
+        self.keepalive_s = float(rospy.get_param("~drone_keepalive_s", 8.0))
+        self.landed = False
+
+        self.tf_buffer = tf2_ros.Buffer(rospy.Duration(30.0))
+        self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+        tello = TelloClient() if self.robot == "drone" else None
+        self.tello = tello
+        self.executor = StepExecutor(self.robot, tello=tello)
+        self.navigator = actionlib.SimpleActionClient(action_name, MoveBaseAction)
+        self.state_pub = rospy.Publisher("conductor/state", ConductorState, queue_size=5, latch=True)
+        self.diag_pub = rospy.Publisher("/diagnostics", DiagnosticArray, queue_size=5)
+        rospy.Subscriber("slam/state", SlamState, self._on_slam_state, queue_size=10)
+        rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=1)
+        rospy.Service("~start", Trigger, lambda _: self._request("start"))
+        rospy.Service("~stop", Trigger, lambda _: self._request("stop"))
+        rospy.Service("~return_to_start", Trigger, lambda _: self._request("return"))
+        self._publish_state()
+
+    def _request(self, name):
+        with self.lock:
+            self.requests[name] = True
+        return TriggerResponse(success=True, message=f"{name} requested")
+
+    def _on_slam_state(self, msg):
+        with self.lock:
+            self.obs.tracking_lost = msg.state == SlamState.LOST  # not initialised is no loss
+
+    def _on_map(self, msg):
+        if msg.info.resolution <= 0 or len(msg.data) != msg.info.width * msg.info.height:
+            rospy.logwarn_throttle(10.0, "conductor: malformed map ignored (%dx%d, %d cells)",
+                                   msg.info.width, msg.info.height, len(msg.data))
+            return
+        if msg.header.frame_id and msg.header.frame_id != self.map_frame:
+            rospy.logwarn_throttle(10.0, "conductor: map in frame %r, expected %r: ignored",
+                                   msg.header.frame_id, self.map_frame)
+            return
+        cells = np.asarray(msg.data, dtype=np.int8).reshape(msg.info.height, msg.info.width)
+        o = msg.info.origin.position
+        with self.lock:
+            self.grid = GridView(cells, msg.info.resolution, (o.x, o.y))
+
+    def _robot_pose(self):
+        """(x, y, yaw) of the base in the map frame, or None."""
+        try:
+            tf = self.tf_buffer.lookup_transform(self.map_frame, self.base_frame, rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                tf2_ros.ExtrapolationException):
+            return None
+        m = transform_to_matrix(tf.transform)
+        return float(m[0, 3]), float(m[1, 3]), math.atan2(m[1, 0], m[0, 0])
+
+    def _observe(self):
+        pose = self._robot_pose()
+        with self.lock:
+            obs = self.obs
+            obs.time_s = rospy.Time.now().to_sec()
+            obs.robot_xy = pose[:2] if pose else None
+            grid = self.grid
+            if grid is not None and pose is not None:
+                obs.map_ready = grid.free_cells_near(pose[0], pose[1], 1.0) >= self.min_free_cells
+                obs.robot_in_obstacle = grid.in_obstacle(pose[0], pose[1])
+            obs.scan_running = self.scan_thread is not None and self.scan_thread.is_alive()
+            obs.start_requested = self.requests["start"]
+            obs.stop_requested = self.requests["stop"]
+            obs.return_requested = self.requests["return"]
+            self.requests = {"start": False, "stop": False, "return": False}
+            state = self.navigator.get_state() if self.conductor.goal_xy is not None else None
+            obs.navigator_state = _NAVIGATOR_STATES.get(state, "")
+            snapshot = Observation(**vars(obs))
+            obs.exit_answered = False  # an answer is seen once
+        return snapshot, pose
+
+    def _scan_steps(self, name, pose):
+        grid = self.grid
+        if name == "initial":
+            return initial_scan(self.initial_config)
+        if name == "relocalise":
+            return sway(self.initial_config)
+        if grid is None or pose is None:
+            return initial_scan(self.initial_config)  # nothing to aim at yet
+        x, y, yaw = pose
+        if name == "wall":
+            distances = [(b, grid.free_distance(x, y, yaw + math.radians(b)))
+                         for b in self.wall_bearings_deg]
+            return wall_scan(distances, self.wall_config)
+        return random_scan(self.rng, lambda b: grid.free_distance(x, y, yaw + math.radians(b)),
+                           self.wall_config)
+
+    def _start_scan(self, name, pose):
+        self._stop_scan()
+        steps = self._scan_steps(name, pose)
+        rospy.loginfo("conductor: %s scan, %d steps", name, len(steps))
+        self.scan_stop.clear()
+        self.scan_thread = threading.Thread(target=self._run_scan, args=(steps,), daemon=True)
+        self.scan_thread.start()
+
+    def _run_scan(self, steps):
+        if self.tello is not None and not self.took_off:
+            self.took_off = all(self.tello.send(c) == "ok" for c in ("command", "takeoff"))
+        runner = ScanRunner(steps, self.runner_config)
+        while not self.scan_stop.is_set() and not rospy.is_shutdown():
+            item = runner.next_step()
+            if item is None:
+                break
+            step, speed = item
+            done = self.executor.execute(step, speed, should_stop=self.scan_stop.is_set)
+            rospy.sleep(0.5)  # the bridge's state catches up with the last motion
+            with self.lock:
+                lost = self.obs.tracking_lost
+            runner.report(done and not lost)
+        with self.lock:
+            self.obs.scan_failed = runner.failed
+
+    def _stop_scan(self):
+        if self.scan_thread is not None and self.scan_thread.is_alive():
+            self.scan_stop.set()
+            self.scan_thread.join(timeout=60.0)
+
+    def _ask_exit(self):
+        def call():
+            answer = None
+            try:
+                rospy.wait_for_service(self.exit_service, timeout=10.0)
+                response = rospy.ServiceProxy(self.exit_service, FindExit)(method="")
+                if response.success and response.candidates.exits:
+                    best = response.candidates.exits[0]
+                    answer = (best.x, best.y)
+                rospy.loginfo("conductor: exit finder: %s (%s)", response.candidates.status,
+                              response.candidates.reason)
+            except (rospy.ROSException, rospy.ServiceException) as exc:
+                rospy.logwarn("conductor: exit finder call failed: %s", exc)
+                return  # no answer: the conductor's timeout decides
+            with self.lock:
+                self.obs.exit_xy = answer
+                self.obs.exit_answered = True
+        self.exit_thread = threading.Thread(target=call, daemon=True)
+        self.exit_thread.start()
+
+    def _send_goal(self, xy):
+        goal = MoveBaseGoal()
+        goal.target_pose = PoseStamped()
+        goal.target_pose.header.frame_id = self.map_frame
+        goal.target_pose.header.stamp = rospy.Time.now()
+        goal.target_pose.pose.position.x, goal.target_pose.pose.position.y = xy
+        goal.target_pose.pose.orientation.w = 1.0
+        if not self.navigator.wait_for_server(rospy.Duration(5.0)):
+            rospy.logwarn_throttle(10.0, "conductor: navigator action server not available")
+        self.navigator.send_goal(goal)
+
+    def _carry_out(self, action, pose):
+        if action.kind == ActionKind.SCAN:
+            self._start_scan(action.payload, pose)
+        elif action.kind == ActionKind.FIND_EXIT:
+            self._ask_exit()
+        elif action.kind == ActionKind.GOAL:
+            self._send_goal(action.payload)
+        elif action.kind == ActionKind.CANCEL_GOAL:
+            self.navigator.cancel_all_goals()
+        elif action.kind == ActionKind.STOP:
+            self._stop_scan()
+            if self.robot == "ground":
+                self.executor.execute(Step())  # publishes one zero velocity
+        elif action.kind == ActionKind.RECOVER_MOTION:
+            self._stop_scan()
+            self.scan_stop.clear()
+            steps = [Step(forward_m=0.2, ccw_deg=30.0), Step(forward_m=-0.2)]
+            self.scan_thread = threading.Thread(target=self._run_scan, args=(steps,), daemon=True)
+            self.scan_thread.start()
+
+    def _publish_state(self):
+        c = self.conductor
+        msg = ConductorState(state=c.state.value, phase=c.phase.value, reason=c.reason,
+                             has_exit=c.exit_xy is not None)
+        msg.header.stamp = rospy.Time.now()
+        msg.header.frame_id = self.map_frame
+        if c.exit_xy is not None:
+            msg.exit = Point(x=c.exit_xy[0], y=c.exit_xy[1], z=0.0)
+        self.state_pub.publish(msg)
+
+    def _publish_diagnostics(self, obs):
+        c = self.conductor
+        level = DiagnosticStatus.ERROR if c.phase.value == "gave_up" else DiagnosticStatus.OK
+        status = DiagnosticStatus(level=level, name="sparse_nav: conductor", hardware_id="conductor",
+                                  message=f"{c.state.value} / {c.phase.value}: {c.reason}")
+        status.values = [KeyValue(key="tracking_lost", value=str(obs.tracking_lost)),
+                         KeyValue(key="map_ready", value=str(obs.map_ready)),
+                         KeyValue(key="transitions", value=str(len(c.history)))]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = rospy.Time.now()
+        self.diag_pub.publish(array)
+
+    def _drone_upkeep(self):
+        """A Tello lands by itself after 15 s without a command: while the conductor holds the
+        drone (no scan, no goal) it sends "command" now and then; at the mission's end it lands."""
+        if self.tello is None or not self.took_off or self.landed:
+            return
+        if self.scan_thread is not None and self.scan_thread.is_alive():
+            return
+        if self.conductor.phase.final:
+            self.landed = True
+            threading.Thread(target=self.tello.send, args=("land",), daemon=True).start()
+        elif self.conductor.state != State.GOAL:
+            idle = self.tello.idle_s()
+            if idle is not None and idle > self.keepalive_s:
+                threading.Thread(target=self.tello.send, args=("command",), daemon=True).start()
+
+    def spin(self):
+        while not rospy.is_shutdown() and rospy.Time.now().is_zero():
+            rospy.sleep(0.05)
+        rate = rospy.Rate(self.rate_hz)
+        last_history = -1
+        while not rospy.is_shutdown():
+            obs, pose = self._observe()
+            for action in self.conductor.update(obs):
+                rospy.loginfo("conductor: %s %s", action.kind.value,
+                              "" if action.payload is None else action.payload)
+                self._carry_out(action, pose)
+            if len(self.conductor.history) != last_history:
+                last_history = len(self.conductor.history)
+                rospy.loginfo("conductor: %s / %s: %s", self.conductor.state.value,
+                              self.conductor.phase.value, self.conductor.reason)
+                self._publish_state()
+            self._publish_diagnostics(obs)
+            self._drone_upkeep()
+            try:
+                rate.sleep()
+            except rospy.ROSInterruptException:
+                break
+        self._stop_scan()
+
+
+def main():
+    rospy.init_node("conductor")
+    ConductorNode().spin()

@@ -1,0 +1,26 @@
+"""Mission judgement against ground truth."""
+import pytest
+
+from sparse_nav.mission_report import evaluate, exit_error_m, left_the_room, path_length_m
+from sparse_nav.sim.world import load_world
+
+
+def test_success_needs_done_and_the_robot_outside():
+    world = load_world("one_room")  # 6 x 5 m room, exit at (5.5, 5.8) at the end of a recess
+    inside = [(3.0, 2.5), (5.5, 5.0)]
+    outside = inside + [(5.5, 6.6)]
+    assert left_the_room(world, (5.5, 6.6)) and not left_the_room(world, (5.5, 5.5))
+    assert evaluate(world, "done", outside, (5.4, 5.8))["success"]
+    assert not evaluate(world, "done", inside, (5.4, 5.8))["success"]
+    assert not evaluate(world, "gave_up", outside, None)["success"]
+    report = evaluate(world, "done", outside, (5.4, 5.8))
+    assert report["path_length_m"] == pytest.approx(path_length_m(outside), abs=1e-3)
+    assert report["exit_error_m"] == pytest.approx(0.1)
+    assert evaluate(world, "done", [], None) == {"success": False, "left_the_room": False,
+                                                 "path_length_m": 0.0, "exit_error_m": None}
+
+
+def test_lengths_and_errors():
+    assert path_length_m([(0, 0), (3, 4), (3, 5)]) == pytest.approx(6.0)
+    assert path_length_m([(1, 1)]) == 0.0
+    assert exit_error_m(load_world("one_room"), None) is None

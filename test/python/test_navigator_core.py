@@ -151,6 +151,7 @@ def test_slam_loss_keeps_the_goal_relative_and_reanchors_it():
     status = nav.update()
     assert status.state == LOST and status.path == []
     nav.on_slam_new_map()
+    assert nav.geometry is None  # the old map's cells do not match the new SLAM map
     assert nav.update().state == LOST  # waiting for the new map and pose
     nav.set_pose(2.0, 0.0, math.pi / 2)
     assert nav.update().state == LOST  # still no new map

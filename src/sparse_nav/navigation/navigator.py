@@ -224,8 +224,10 @@ class Navigator:
         self._reset_task()
 
     def on_slam_new_map(self):
-        """SLAM started a new map: the goal is re-anchored on the next map and pose."""
+        """SLAM started a new map: the old grid no longer matches the world, so it is dropped; the
+        goal is re-anchored on the next map and pose."""
         self.lost = False
+        self.geometry = self.latest = self.applied = self.pending = self.grid = None
         if self.goal is not None and self.goal_relative is not None:
             self.awaiting_reanchor = True
             self.map_since_new_map = False

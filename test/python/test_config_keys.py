@@ -9,6 +9,7 @@ ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
 NODES = {"sim": "src/sparse_nav/ros/sim_node.py",
          "slam_bridge": "src/sparse_nav/ros/slam_bridge_node.py",
          "cartographer": "src/sparse_nav/ros/cartographer_node.py",
+         "motion": "src/sparse_nav/ros/motion_node.py",
          "navigator": "src/sparse_nav/ros/navigator_node.py",
          "cloud_filter": "src/ros/cloud_filter_nodelet.cpp",
          "ground_mapper": "src/ros/ground_mapper_nodelet.cpp",

@@ -75,6 +75,7 @@ def initial_scan(config=None):
         turned += turn
     return steps
 
+
 @dataclasses.dataclass
 class WallScanConfig:
     """Sizes of the seed 000 wall scan and its random variant; defaults written once here."""

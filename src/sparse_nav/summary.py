@@ -7,10 +7,12 @@ import matplotlib.transforms  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-def plot_summary(path, world, points, true_path, estimated_path, title=""):
+def plot_summary(path, world, points, true_path, estimated_path, title="", found_exit=None,
+                 exit_lines=(), planned_path=()):
     """Writes a PNG: true walls and exits, SLAM points (red), true and estimated trajectories.
 
-    points, true_path and estimated_path are in the world's (ground truth) frame, metres.
+    Seed 000's picture on top: the exit found (green) and the room lines next to it (blue), and
+    the last planned path. Every input is in the world's (ground truth) frame, metres.
     """
     fig, ax = plt.subplots(figsize=(8, 8), dpi=100)
     for x1, y1, x2, y2 in world.wall_segments():
@@ -19,8 +21,16 @@ def plot_summary(path, world, points, true_path, estimated_path, title=""):
     if len(pts):
         ax.scatter(pts[:, 0], pts[:, 1], s=2, color="red", label=f"SLAM points ({len(pts)})")
     for exit_ in world.exits:
-        ax.scatter([exit_["x"]], [exit_["y"]], s=200, marker="*", color="green",
-                   label="true exit")
+        ax.scatter([exit_["x"]], [exit_["y"]], s=200, marker="*", facecolors="none",
+                   edgecolors="green", label="true exit")
+    for (x1, y1), (x2, y2) in exit_lines:
+        ax.plot([x1, x2], [y1, y2], color="blue", linewidth=2.5, label="room lines at the exit")
+    if found_exit is not None:
+        ax.scatter([found_exit[0]], [found_exit[1]], s=120, color="green", zorder=5,
+                   label="exit found")
+    if len(planned_path) > 1:
+        xy = np.asarray(planned_path)
+        ax.plot(xy[:, 0], xy[:, 1], color="orange", linewidth=2, label="planned path")
     for trajectory, style, label in ((true_path, "b-", "true trajectory"),
                                      (estimated_path, "c--", "estimated trajectory")):
         if len(trajectory):

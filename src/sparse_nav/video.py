@@ -43,9 +43,13 @@ class TopViewVideo:
         if grid_cells_xy is not None:
             radius = max(1, int(round(0.025 * self.scale)))
             for cells, colour in zip(grid_cells_xy, (_FREE, _OCCUPIED)):
-                for u, v in self._px(cells) if len(cells) else []:
-                    cv2.rectangle(image, (u - radius, v - radius), (u + radius, v + radius),
-                                  colour, -1)
+                if len(cells):
+                    uv = self._px(cells)
+                    for du in range(-radius, radius + 1):  # a filled square per cell, vectorised
+                        for dv in range(-radius, radius + 1):
+                            u, v = uv[:, 0] + du, uv[:, 1] + dv
+                            keep = (u >= 0) & (u < self.size[0]) & (v >= 0) & (v < self.size[1])
+                            image[v[keep], u[keep]] = colour
         for x1, y1, x2, y2 in self.world.wall_segments():
             (a, b) = self._px([(x1, y1), (x2, y2)])
             cv2.line(image, tuple(map(int, a)), tuple(map(int, b)), _WALL, 3)

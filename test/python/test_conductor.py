@@ -34,7 +34,7 @@ class Mission:
 
 
 def test_the_whole_mission_in_order():
-    m = Mission()
+    m = Mission(ConductorConfig(wall_scan_enabled=True))
     assert m.conductor.state == State.IDLE and m.conductor.phase == Phase.WAITING
     assert m.tick() == []  # nothing before start
     actions = m.tick(start_requested=True)
@@ -132,7 +132,7 @@ def test_lost_for_too_long_gives_up():
 
 
 def test_a_loss_during_a_scan_is_left_to_the_scan_retries():
-    m = Mission()
+    m = Mission(ConductorConfig(wall_scan_enabled=True))
     m.tick(start_requested=True)
     m.tick(scan_running=True)
     assert m.tick(tracking_lost=True) == []

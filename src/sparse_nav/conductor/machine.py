@@ -77,7 +77,7 @@ class Observation:
 class ConductorConfig:
     """Mission limits; defaults written once here."""
 
-    wall_scan_enabled: bool = True       # 000's second scan phase after the initial scan
+    wall_scan_enabled: bool = False      # 000 step 2 (off: in the sim its approaches cost losses)
     max_scan_rounds: int = 3             # initial scans without a map before giving up
     max_exit_attempts: int = 3           # exit finder answers without an exit before giving up
     exit_answer_timeout_s: float = 20.0  # no answer from the exit finder in this time: retry

@@ -68,6 +68,7 @@ class ConductorNode:
         self.scan_stop = threading.Event()
         self.exit_thread = None
         self.keepalive_s = float(rospy.get_param("~drone_keepalive_s", 8.0))
+        self.relocalise_turn_deg = float(rospy.get_param("~relocalise_turn_deg", 60.0))
         self.landed = False
 
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(30.0))
@@ -144,7 +145,9 @@ class ConductorNode:
         if name == "initial":
             return initial_scan(self.initial_config)
         if name == "relocalise":
-            return sway(self.initial_config)
+            # 004's LOST: look and move around. Each try also turns, so that a robot stuck
+            # facing a bare wall ends up looking at the mapped room again.
+            return sway(self.initial_config) + [Step(ccw_deg=self.relocalise_turn_deg)]
         if grid is None or pose is None:
             return initial_scan(self.initial_config)  # nothing to aim at yet
         x, y, yaw = pose

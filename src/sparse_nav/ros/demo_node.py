@@ -1,8 +1,10 @@
-"""demo: the seed 000 initial scan on the simulator, recorded, then summarised in output_dir.
+"""demo: records the escape mission on the simulator and summarises it in output_dir.
 
-Writes report.json, cloud.csv (the SLAM map points in the wrapper's frame, as users save them),
-summary.png (top view: SLAM points, true walls, trajectories) and run.bag, then exits so that a
-launch file with required="true" ends.
+The conductor runs the mission; this node only watches. It ends when the conductor is done or
+gave up (or at sim_time_limit_s) and writes report.json, cloud.csv (the SLAM map points in the
+wrapper's frame, as users save them), summary.png (top view: SLAM points, true walls, tracks, the
+exit found and the room lines next to it, the last path), map.png, run.mp4 (top view over time)
+and run.bag, then exits so that a launch file with required="true" ends.
 """
 import json
 import os
@@ -14,18 +16,18 @@ import rospy
 import tf2_ros
 from geometry_msgs.msg import PoseStamped, Twist
 from map_msgs.msg import OccupancyGridUpdate
-from nav_msgs.msg import OccupancyGrid, Odometry
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
-from sparse_nav.msg import FloorEstimate, SlamScale, SlamState
+from sparse_nav.mission_report import evaluate
+from sparse_nav.msg import ConductorState, ExitCandidates, FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, transform_to_matrix
 from sparse_nav.ros.sim_node import load_ros_world
-from sparse_nav.ros.robot_io import StepExecutor, TelloClient
-from sparse_nav.scanning import initial_scan
 from sparse_nav.summary import plot_grid, plot_summary
+from sparse_nav.video import TopViewVideo
 
 RECORDED = [
     ("orb_slam3/camera_pose", PoseStamped), ("orb_slam3/tracked_points", PointCloud2),
@@ -34,7 +36,8 @@ RECORDED = [
     ("ground_truth/odom", Odometry), ("ground_truth/slam_scale", Float64), ("odom", Odometry),
     ("cmd_vel", Twist), ("tello/command", String), ("tello/response", String),
     ("map", OccupancyGrid), ("map_updates", OccupancyGridUpdate), ("floor_plane", FloorEstimate),
-    ("cloud/obstacles", PointCloud2),
+    ("cloud/obstacles", PointCloud2), ("conductor/state", ConductorState),
+    ("navigator/path", Path), ("exit_candidates", ExitCandidates),
     ("/tf", TFMessage), ("/tf_static", TFMessage),
 ]
 
@@ -63,7 +66,11 @@ class DemoNode:
         self.world_name = rospy.get_param("~world", "one_room")
         self.robot = rospy.get_param("~robot", "drone")
         self.output_dir = os.path.abspath(rospy.get_param("~output_dir", "demo_output"))
-        self.response_timeout_s = float(rospy.get_param("~response_timeout_s", 30.0))
+        self.sim_time_limit_s = float(rospy.get_param("~sim_time_limit_s", 900.0))
+        self.frame_period_s = float(rospy.get_param("~video_frame_period_s", 1.0))
+        self.world = load_ros_world(self.world_name)
+        self.conductor_states = []
+        self.t_truth_map = None
         os.makedirs(self.output_dir, exist_ok=True)
         self.lock = threading.Lock()
         self.bag = rosbag.Bag(os.path.join(self.output_dir, "run.bag"), "w")
@@ -87,6 +94,8 @@ class DemoNode:
                 self.responses.append(msg.data)
             elif topic == "slam/state":
                 self.states.append(msg)
+            elif topic == "conductor/state":
+                self.conductor_states.append(msg)
             elif topic == "ground_truth/odom":
                 p = msg.pose.pose.position
                 self.true_path.append((p.x, p.y))
@@ -104,21 +113,98 @@ class DemoNode:
         t = tf.transform.translation
         self.estimated_path.append((t.x, t.y))
 
-    def run_scan(self):
+    def _truth_from_map(self):
+        """4x4 map -> sim_world (the display alignment the simulator publishes), or None."""
+        if self.t_truth_map is None:
+            try:
+                tf = self.tf_buffer.lookup_transform("sim_world", "map", rospy.Time(0))
+                self.t_truth_map = transform_to_matrix(tf.transform)
+            except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                    tf2_ros.ExtrapolationException):
+                return None
+        return self.t_truth_map
+
+    def _to_truth(self, xy):
+        t = self._truth_from_map()
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        return xy @ t[:2, :2].T + t[:2, 3]
+
+    def _found_exit(self):
+        """The exit the conductor heads for, in the truth frame, or None."""
+        with self.lock:
+            last = self.conductor_states[-1] if self.conductor_states else None
+        if last is None or not last.has_exit or self._truth_from_map() is None:
+            return None
+        return tuple(self._to_truth((last.exit.x, last.exit.y))[0])
+
+    def _frame(self, video):
+        with self.lock:
+            grid = self.latest.get("map")
+            path = self.latest.get("navigator/path")
+            state = self.conductor_states[-1] if self.conductor_states else None
+            true_track = list(self.true_path)
+            estimated = list(self.estimated_path)
+        cells_xy = None
+        planned = []
+        if self._truth_from_map() is not None:
+            if grid is not None:
+                cells = grid_to_array(grid)
+                res = grid.info.resolution
+                o = grid.info.origin.position
+                centres = []
+                for value in (0, 100):
+                    rows, cols = np.nonzero(cells == value)
+                    centres.append(self._to_truth(np.stack(
+                        [o.x + (cols + 0.5) * res, o.y + (rows + 0.5) * res], axis=1)))
+                cells_xy = tuple(centres)
+            if path is not None and path.poses:
+                planned = self._to_truth([(p.pose.position.x, p.pose.position.y)
+                                          for p in path.poses])
+        text = f"t = {rospy.Time.now().to_sec():6.1f} s"
+        if state is not None:
+            text += f"  {state.state} / {state.phase}"
+        video.add_frame(cells_xy, true_track, estimated, planned, self._found_exit(), text)
+
+    def run_mission(self):
+        """Watches until the conductor ends the mission (or the sim-time limit), filming it."""
         self._wait_for_clock()
-        rospy.sleep(1.0)  # let every node subscribe before the first motion
-        tello = (TelloClient(self.response_timeout_s, on_wait=self._sample_estimate)
-                 if self.robot == "drone" else None)
-        executor = StepExecutor(self.robot, tello=tello, on_wait=self._sample_estimate)
-        if tello is not None:
-            for command in ("command", "takeoff"):
-                rospy.loginfo("demo: %s -> %s", command, tello.send(command))
-        for step in initial_scan():
-            if not executor.execute(step):
-                rospy.logwarn("demo: step %s was not carried out completely", step)
-        if tello is not None:
-            rospy.loginfo("demo: land -> %s", tello.send("land"))
-        rospy.sleep(1.0)
+        video = TopViewVideo(os.path.join(self.output_dir, "run.mp4"), self.world)
+        next_frame = rospy.Time.now().to_sec()
+        try:
+            while not rospy.is_shutdown() and rospy.Time.now().to_sec() < self.sim_time_limit_s:
+                self._sample_estimate()
+                now = rospy.Time.now().to_sec()
+                if now >= next_frame:
+                    self._frame(video)
+                    next_frame = now + self.frame_period_s
+                with self.lock:
+                    phase = self.conductor_states[-1].phase if self.conductor_states else ""
+                if phase in ("done", "gave_up"):
+                    rospy.loginfo("demo: the conductor ended the mission: %s", phase)
+                    break
+                rospy.sleep(0.1)
+            else:
+                rospy.logwarn("demo: sim-time limit of %.0f s reached", self.sim_time_limit_s)
+            rospy.sleep(3.0)  # the drone lands; the last state and path arrive
+            self._frame(video)
+        finally:
+            video.close()
+
+    def _exit_lines(self):
+        """The room outline's two edges that meet nearest to the exit found (truth frame)."""
+        with self.lock:
+            candidates = self.latest.get("exit_candidates")
+        found = self._found_exit()
+        if candidates is None or found is None or len(candidates.room_outline) < 3:
+            return []
+        outline = self._to_truth([(p.x, p.y) for p in candidates.room_outline])
+        edges = [(outline[i], outline[(i + 1) % len(outline)]) for i in range(len(outline))]
+
+        def distance(edge):
+            a, b = edge
+            t = np.clip(np.dot(found - a, b - a) / max(np.dot(b - a, b - a), 1e-12), 0, 1)
+            return np.linalg.norm(found - (a + t * (b - a)))
+        return sorted(edges, key=distance)[:2]
 
     def write_outputs(self):
         with self.lock:
@@ -130,15 +216,11 @@ class DemoNode:
         raw_points = cloud_to_points(raw) if raw is not None else np.empty((0, 3))
         write_points_csv(os.path.join(self.output_dir, "cloud.csv"), raw_points)
 
-        world = load_ros_world(self.world_name)
+        world = self.world
         map_points = np.empty((0, 3))
-        t_truth_map = None
-        try:
-            tf = self.tf_buffer.lookup_transform("sim_world", "map", rospy.Time(0))
-            t_truth_map = transform_to_matrix(tf.transform)
-        except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
-                tf2_ros.ExtrapolationException) as exc:
-            rospy.logwarn("demo: no map -> sim_world alignment, map not drawn: %s", exc)
+        t_truth_map = self._truth_from_map()
+        if t_truth_map is None:
+            rospy.logwarn("demo: no map -> sim_world alignment, map not drawn")
         if "slam/points" in latest and t_truth_map is not None:
             map_points = cloud_to_points(latest["slam/points"])
             map_points = map_points @ t_truth_map[:3, :3].T + t_truth_map[:3, 3]
@@ -147,18 +229,39 @@ class DemoNode:
             plot_grid(os.path.join(self.output_dir, "map.png"), world, grid_to_array(grid),
                       grid.info.resolution, (grid.info.origin.position.x, grid.info.origin.position.y),
                       t_truth_map, title=f"{world.name}: occupancy grid (sim_world frame)")
+        found_exit = self._found_exit()
+        path_msg = latest.get("navigator/path")
+        planned = (self._to_truth([(p.pose.position.x, p.pose.position.y) for p in path_msg.poses])
+                   if path_msg is not None and path_msg.poses and t_truth_map is not None else [])
         plot_summary(os.path.join(self.output_dir, "summary.png"), world, map_points,
                      self.true_path, self.estimated_path,
-                     title=f"{world.name}, {self.robot}: {len(raw_points)} SLAM points")
+                     title=f"{world.name}, {self.robot}: {len(raw_points)} SLAM points",
+                     found_exit=found_exit, exit_lines=self._exit_lines(), planned_path=planned)
+        with self.lock:
+            conductor_states = list(self.conductor_states)
+        final_phase = conductor_states[-1].phase if conductor_states else "no conductor state"
+        judgement = evaluate(world, final_phase, self.true_path, found_exit)
+        visited = []
+        for c in conductor_states:
+            if not visited or visited[-1] != [c.state, c.phase]:
+                visited.append([c.state, c.phase])
 
         scale = latest.get("slam/scale")
         true_scale = latest.get("ground_truth/slam_scale")
         estimated = scale.metres_per_unit if scale else None
         truth = true_scale.data if true_scale else None
         report = {
+            "success": judgement["success"],
             "world": world.name,
             "robot": self.robot,
             "sim_time_s": round(rospy.Time.now().to_sec(), 2),
+            "final_phase": final_phase,
+            "final_reason": conductor_states[-1].reason if conductor_states else "",
+            "left_the_room": judgement["left_the_room"],
+            "path_length_m": judgement["path_length_m"],
+            "exit_error_m": judgement["exit_error_m"],
+            "exit_found_xy": None if found_exit is None else [round(v, 3) for v in found_exit],
+            "states": visited,
             "slam_points": int(len(raw_points)),
             "tracking_losses": sum(1 for s in states if s.state == SlamState.LOST),
             "slam_maps": len({s.map_index for s in states}),
@@ -186,7 +289,7 @@ def main():
     rospy.init_node("demo")
     node = DemoNode()
     try:
-        node.run_scan()
+        node.run_mission()
     except rospy.ROSInterruptException:
         return
     node.write_outputs()

@@ -309,3 +309,19 @@ def test_go_to_wall_drone_commands():
 def test_config_is_validated(kwargs):
     with pytest.raises(ValueError):
         MotionController(MotionConfig(**kwargs))
+
+
+def test_republished_path_keeps_progress_and_a_new_one_is_projected_whole():
+    f = PathFollower(lookahead_m=0.5, goal_tolerance_m=0.3)
+    path = [[0, 0], [0.6, 0], [1.2, 0], [1.2, 0.8]]
+    f.set_path(path)
+    for x in np.arange(0.0, 1.25, 0.05):
+        f.target(x, 0.0, 0.0)
+    for y in np.arange(0.0, 1.0, 0.1):
+        f.set_path(path)                   # the navigator republishes the same path
+        t = f.target(1.25, y, math.pi / 2)
+    assert t.reached
+    f.set_path([[-2.0, 0.0], [1.2, 0.0], [1.2, 1.0]])   # a replan, starting far behind
+    t = f.target(1.2, 0.9, math.pi / 2)
+    assert t.remaining_m == pytest.approx(0.1)
+    assert t.reached

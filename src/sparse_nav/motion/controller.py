@@ -38,7 +38,7 @@ class MotionConfig:
     drone_min_turn_deg: int = 8        # smaller heading errors are left uncorrected
     pose_timeout_s: float = 0.25       # TF odom -> base_link at 20 Hz: about twice its period + slack
     map_timeout_s: float = 0.25        # TF map -> odom (slam_bridge, 20 Hz)
-    path_timeout_s: float = 2.5        # navigator/path, republished at 1 Hz or faster
+    path_timeout_s: float = 0.5        # navigator/path, republished at 5 Hz: twice its period + slack
     tracked_timeout_s: float = 0.5     # tracked points older than this count as none seen
     wall_min_tracked_points: int = 40  # go-to-wall: fewer tracked points is a miss
     wall_max_fails: int = 3            # consecutive misses that mean the wall is reached (seed 000)

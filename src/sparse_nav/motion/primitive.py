@@ -41,7 +41,8 @@ class PathFollower:
 
     The robot is projected onto the path within a window ahead of its previous progress (a path
     that passes near itself cannot make it skip a loop), and the look-ahead point lies
-    ``lookahead_m`` further along the path from that projection.
+    ``lookahead_m`` further along the path from that projection. A path republished unchanged
+    keeps the progress; a new one is first projected over its whole length.
     """
 
     def __init__(self, lookahead_m, goal_tolerance_m):
@@ -52,6 +53,7 @@ class PathFollower:
         self.points = None
         self._cum = None
         self._progress_m = 0.0
+        self._global_projection = True
 
     def set_path(self, points):
         """Follow ``points`` (N, 2) m from its start; raises ValueError if malformed."""
@@ -61,10 +63,16 @@ class PathFollower:
         if not np.all(np.isfinite(pts)):
             raise ValueError("path contains NaN or Inf")
         keep = np.concatenate([[True], np.any(np.abs(np.diff(pts, axis=0)) > 1e-9, axis=1)])
-        self.points = pts[keep]
+        pts = pts[keep]
+        if self.points is not None and pts.shape == self.points.shape \
+                and np.allclose(pts, self.points, rtol=0.0, atol=1e-6):
+            return   # the same path republished: keep the progress along it
+        self.points = pts
         seg = np.linalg.norm(np.diff(self.points, axis=0), axis=1)
         self._cum = np.concatenate([[0.0], np.cumsum(seg)])
         self._progress_m = 0.0
+        # A new path (a replan) may start behind the robot: the first projection searches it all.
+        self._global_projection = True
 
     def clear(self):
         self.points = None
@@ -84,6 +92,9 @@ class PathFollower:
     def _project(self, xy):
         """Arc length of the path point nearest ``xy`` within the window ahead of the progress."""
         window_end = self._progress_m + max(2.0 * self.lookahead_m, 1.0)
+        if self._global_projection:
+            window_end = self._cum[-1]
+            self._global_projection = False
         best_s, best_d = self._progress_m, math.inf
         for i in range(len(self.points) - 1):
             if self._cum[i + 1] < self._progress_m or self._cum[i] > window_end:

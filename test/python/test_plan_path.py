@@ -149,19 +149,22 @@ def test_bad_files_give_clear_errors(capsys, tmp_path):
 
 
 def test_movingai_data_when_present(capsys):
-    """Sampled scenarios of one real Moving AI map, the hardest included (skips without data)."""
+    """Every Moving AI map with its .scen: the first and the last (hardest) scenario match the
+    listed optimum, and the incremental replan the fresh search (skips without the data)."""
     root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "shared",
                         "data", "movingai")
     maps = sorted(os.path.join(d, f) for d, _, fs in os.walk(root) for f in fs
                   if f.endswith(".map") and os.path.exists(os.path.join(d, f + ".scen")))
     if not maps:
         pytest.skip("Moving AI data absent")
-    status, out, _ = cli(capsys, "--movingai-map", maps[0], "--scen", maps[0] + ".scen",
-                         "--sample", "5", "--json")
-    rows = json.loads(out)["results"]
-    assert status == 0 and len(rows) == 5
-    for r in rows:
-        assert r["length"] == pytest.approx(r["optimal"], rel=1e-6)
-        if r["replan_length"] is not None:
-            assert r["replan_length"] == pytest.approx(r["replan_check_length"], rel=1e-9)
-    assert np.isfinite([r["plan_ms"] for r in rows]).all()
+    for path in maps:
+        status, out, _ = cli(capsys, "--movingai-map", path, "--scen", path + ".scen",
+                             "--sample", "2", "--json")
+        rows = json.loads(out)["results"]
+        assert status == 0 and len(rows) == 2, path
+        assert rows[-1]["index"] == len(read_scenarios(path + ".scen")) - 1
+        for r in rows:
+            assert r["length"] == pytest.approx(r["optimal"], rel=1e-6), (path, r)
+            if r["replan_length"] is not None:
+                assert r["replan_length"] == pytest.approx(r["replan_check_length"], rel=1e-9)
+        assert np.isfinite([r["plan_ms"] for r in rows]).all()

@@ -8,6 +8,7 @@ import unittest
 import numpy as np
 import rospy
 import rostest
+from diagnostic_msgs.msg import DiagnosticArray
 from map_msgs.msg import OccupancyGridUpdate
 
 from navigator_harness import NavWorld, occupancy_grid, start_clock
@@ -76,6 +77,12 @@ class NavigatorBadInput(unittest.TestCase):
         path = w.wait_path(lambda p: len(p) >= 2 and math.dist(p[-1], (5.05, 3.55)) < 0.2)
         self.assertIsNotNone(path)
         self.assertEqual(w.unstamped_paths, 0)
+        diag = rospy.wait_for_message("/diagnostics", DiagnosticArray, timeout=30.0)
+        while not any(s.name == "navigator" for s in diag.status):
+            diag = rospy.wait_for_message("/diagnostics", DiagnosticArray, timeout=30.0)
+        values = {v.key: v.value for s in diag.status if s.name == "navigator" for v in s.values}
+        self.assertEqual(int(values["bad_inputs"]), 5)  # map, 2 goals, frame, update
+        self.assertEqual(values["map_size"], "60x40")
 
 
 if __name__ == "__main__":

@@ -102,6 +102,14 @@ def make(tmp_path, **kwargs):
     return Cartographer(CartographerConfig(map_dir=str(tmp_path), **kwargs))
 
 
+def test_first_map_is_index_zero(tmp_path):
+    carto = make(tmp_path)
+    assert carto.on_slam_state(NOT_INITIALIZED, 0, 0.0) == []
+    assert carto.on_slam_state(OK, 0, 1.0) == ["following SLAM map 0 as s001_map000"]
+    assert carto.on_cloud(cloud(1), 2.0)
+    assert carto.flush(3.0) == ["s001_map000"]
+
+
 def test_new_map_keeps_the_old_fragment(tmp_path):
     carto = make(tmp_path)
     assert carto.on_slam_state(NOT_INITIALIZED, 0, 0.0) == []
@@ -135,6 +143,10 @@ def test_merge_combines_into_the_earlier_fragment(tmp_path):
     assert len(pts) == 400
     assert meta["merged_from"] == ["s001_map002"]
     assert carto.current.map_index == 1
+    # The wrapper's next cloud of map 1 need not hold map 2's points: they stay in the fragment.
+    carto.on_cloud(cloud(1)[:100], 5.0)
+    carto.flush(6.0)
+    assert len(carto.store.load("s001_map001")[0]) == 300
 
 
 def test_saves_as_it_goes_at_most_every_period(tmp_path):

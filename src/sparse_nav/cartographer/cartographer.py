@@ -45,14 +45,26 @@ class CartographerConfig:
 
 @dataclasses.dataclass
 class Fragment:
-    """The points (m, in ``frame``) of one SLAM map of this session."""
+    """The points (m, in ``frame``) of one SLAM map of this session.
+
+    ``latest`` is the map's latest whole cloud; ``absorbed`` holds the points of the maps merged
+    into it, which the wrapper's cloud of this map need not contain.
+    """
 
     name: str
     map_index: int
-    points: np.ndarray
+    latest: np.ndarray
+    absorbed: np.ndarray = dataclasses.field(default_factory=lambda: np.empty((0, 3)))
     merged_from: list = dataclasses.field(default_factory=list)
     stamp_s: float = 0.0
     dirty: bool = False
+    voxel_m: float = 0.05
+
+    @property
+    def points(self):
+        if len(self.absorbed) == 0:
+            return self.latest
+        return voxel_unique(np.vstack([self.absorbed, self.latest]), self.voxel_m)
 
 
 def voxel_unique(points, voxel_m):
@@ -101,7 +113,8 @@ class Cartographer:
 
     def on_slam_state(self, state, map_index, stamp_s):
         """Follow a ``slam/state`` message; returns a list of what happened (text)."""
-        if state not in (OK, NEW_MAP) or map_index <= 0:
+        # slam_bridge numbers its maps from 0, so index 0 is the first map, not "none".
+        if state not in (OK, NEW_MAP) or map_index < 0:
             return []
         if self.current is None:
             self.current = self._fragment(map_index)
@@ -115,8 +128,8 @@ class Cartographer:
         if map_index in self.fragments:
             target = self.fragments[map_index]
             if len(old.points):
-                target.points = voxel_unique(np.vstack([target.points, old.points]),
-                                             self.cfg.merge_voxel_m)
+                target.absorbed = voxel_unique(np.vstack([target.absorbed, old.points]),
+                                               self.cfg.merge_voxel_m)
                 target.merged_from = sorted(set(target.merged_from + old.merged_from
                                                 + [old.name]))
                 target.stamp_s = max(target.stamp_s, old.stamp_s)
@@ -152,7 +165,7 @@ class Cartographer:
             raise FragmentError("cloud contains NaN or Inf points")
         if self.current is None or stamp_s < self.switch_stamp_s:
             return False
-        self.current.points = pts
+        self.current.latest = pts
         self.current.stamp_s = stamp_s
         self.current.dirty = True
         return True
@@ -175,11 +188,13 @@ class Cartographer:
     def save_as(self, name, now_s):
         """Write the current fragment also under ``name``; returns its point count."""
         validate_name(name)
-        if self.current is None or len(self.current.points) == 0:
+        points = self.current.points if self.current is not None else np.empty((0, 3))
+        if len(points) == 0:
             raise FragmentError("no current map to save yet")
-        self.store.save(name, self.current.points, self._meta(self.current, now_s))
-        self.library[name] = (self.current.points, self._meta(self.current, now_s))
-        return len(self.current.points)
+        meta = self._meta(self.current, now_s)
+        self.store.save(name, points, meta)
+        self.library[name] = (points, meta)
+        return len(points)
 
     def load(self, name):
         """(points, meta) of fragment ``name`` read and verified from disk."""
@@ -200,7 +215,8 @@ class Cartographer:
         return out
 
     def _fragment(self, map_index):
-        fragment = Fragment(auto_name(self.session, map_index), map_index, np.empty((0, 3)))
+        fragment = Fragment(auto_name(self.session, map_index), map_index, np.empty((0, 3)),
+                            voxel_m=self.cfg.merge_voxel_m)
         self.fragments[map_index] = fragment
         return fragment
 
@@ -210,7 +226,8 @@ class Cartographer:
                 "merged_from": list(fragment.merged_from)}
 
     def _save(self, fragment, now_s):
-        self.store.save(fragment.name, fragment.points, self._meta(fragment, now_s))
-        self.library[fragment.name] = (fragment.points, self._meta(fragment, now_s))
+        points, meta = fragment.points, self._meta(fragment, now_s)
+        self.store.save(fragment.name, points, meta)
+        self.library[fragment.name] = (points, meta)
         fragment.dirty = False
         self.last_save_s = now_s

@@ -94,6 +94,27 @@ def test_goal_off_map_leads_to_the_nearest_known_cell_then_follows_the_grown_map
     assert math.dist(status.path[-1], (9.0, 2.0)) < RES
 
 
+def test_grown_map_cells_beyond_the_viewing_range_start_unknown():
+    geometry, data = free_map(5.0, 4.0)
+    nav = navigator(viewing_range_m=3.0)
+    nav.set_map(geometry, data)
+    nav.set_pose(1.0, 2.0, 0.0)
+    nav.set_goal(9.0, 2.0)
+    assert nav.update().state == GOAL_OFF_MAP
+    bigger, grown = free_map(10.0, 4.0)
+    grown[10:30, 70:75] = 100  # a block at x = 7.0-7.5 m, y = 1-3 m, 6 m from the robot
+    nav.set_map(bigger, grown)
+    status = nav.update()
+    assert status.state == FOLLOWING
+    assert (nav.applied[:, 50:] == -1).all() and nav.pending[:, 50:].all()
+    assert all(abs(y - 2.0) < 0.1 for _, y in status.path)  # straight through the unknown
+    nav.set_pose(5.0, 2.0, 0.0)
+    status = nav.update()
+    assert status.state == FOLLOWING and (nav.applied[10:30, 70:75] == 100).all()
+    assert max(abs(y - 2.0) for _, y in status.path) > 1.0  # around the block now
+    assert path_is_clear(nav, status.path)
+
+
 def test_viewing_range_defers_far_changes_until_the_robot_is_close():
     geometry, data = free_map()
     nav = navigator(viewing_range_m=2.0)

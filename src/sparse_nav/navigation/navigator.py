@@ -157,24 +157,26 @@ class Navigator:
             self.pending = self.latest != self.applied
             return
         applied = data.copy()
-        known_before = np.zeros(data.shape, dtype=bool)
         old = self.geometry
-        if old is not None and old.resolution == geometry.resolution and old.origin[2] == geometry.origin[2]:
-            # Keep the earlier belief where the two grids overlap on whole cells.
+        if old is not None and old.resolution == geometry.resolution \
+                and old.origin[2] == geometry.origin[2] == 0.0:
             sx = (old.origin[0] - geometry.origin[0]) / geometry.resolution
             sy = (old.origin[1] - geometry.origin[1]) / geometry.resolution
-            if abs(sx - round(sx)) < 1e-6 and abs(sy - round(sy)) < 1e-6 and old.origin[2] == 0.0:
+            if abs(sx - round(sx)) < 1e-6 and abs(sy - round(sy)) < 1e-6:
+                # The same cells, moved or grown: the planner keeps its belief where the grids
+                # overlap and sees the new cells as unknown; the newest values arrive through the
+                # viewing range like any other change.
                 sx, sy = int(round(sx)), int(round(sy))
+                applied[:] = -1
                 x0, y0 = max(0, sx), max(0, sy)
                 x1 = min(geometry.width, sx + old.width)
                 y1 = min(geometry.height, sy + old.height)
                 if x0 < x1 and y0 < y1:
                     applied[y0:y1, x0:x1] = self.applied[y0 - sy:y1 - sy, x0 - sx:x1 - sx]
-                    known_before[y0:y1, x0:x1] = True
         self.geometry = geometry
         self.latest = data
         self.applied = applied
-        self.pending = (self.latest != self.applied) & known_before
+        self.pending = self.latest != self.applied
         self._rebuild_grid()
 
     def update_map(self, x, y, width, height, data):

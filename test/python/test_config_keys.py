@@ -11,6 +11,7 @@ NODES = {"sim": "src/sparse_nav/ros/sim_node.py",
          "cartographer": "src/sparse_nav/ros/cartographer_node.py",
          "motion": "src/sparse_nav/ros/motion_node.py",
          "navigator": "src/sparse_nav/ros/navigator_node.py",
+         "exit_finder": "src/sparse_nav/ros/exit_finder_node.py",
          "cloud_filter": "src/ros/cloud_filter_nodelet.cpp",
          "ground_mapper": "src/ros/ground_mapper_nodelet.cpp",
          "grid_builder": "src/ros/grid_builder_nodelet.cpp"}

@@ -189,6 +189,7 @@ def find_notches(profile, cfg):
     max_span = max(2, int(np.ceil(np.radians(cfg.gap_max_span_deg) / step)))
     grow = 1.0 + cfg.gap_jump
     notches = []
+    behind = _behind_counts(profile, cfg)
     for left in np.flatnonzero(known):
         ahead = np.arange(left + 1, left + max_span + 1) % n
         ext = _extension_ranges(profile, pts, known, left, cfg.gap_extension_bins, dirs[ahead])
@@ -213,9 +214,17 @@ def find_notches(profile, cfg):
                            ext[k] > cfg.gap_grazing * r[left]):
                 right = j                  # the surface jumps back: the other jamb
                 break
-            if back_on_wall:
-                break                      # back on the wall without a jamb: no opening
+            if back_on_wall and ext[k] <= r[left] * grow:
+                # Back on the wall without a jamb: no opening. Where the extension has run far
+                # beyond the jamb (a wall seen obliquely) it meets the surface behind an opening,
+                # which says nothing about the wall.
+                break
         if right is None or not _on_wall(r, right, 1, cfg):
+            continue
+        # Seen past the opening's edge, a jamb's bearings are a door frame's wall: nothing dense
+        # behind it. A box or a wall end in front of the room's wall has that wall behind it.
+        side = cfg.gap_occluder_offset + np.arange(cfg.gap_jamb_bins + 1)
+        if _occluder(behind, left - side, cfg) or _occluder(behind, right + side, cfg):
             continue
         width = float(np.hypot(*(pts[right % n] - pts[left])))
         if not cfg.gap_min_width <= width <= cfg.gap_max_width:
@@ -244,15 +253,37 @@ def _extension_ranges(profile, pts, known, left, back, dirs):
     return np.where(np.isfinite(t) & (t > 0), t, np.inf)
 
 
+def _behind_counts(profile, cfg):
+    """Per bearing (unpooled): (points on the surface within gap_jump of its range, points
+    farther behind it)."""
+    n = len(profile.angles)
+    r_surf = profile.ranges[profile.bearing]
+    known = np.isfinite(r_surf)
+    on = known & (np.abs(profile.radius - r_surf) <= cfg.gap_jump * r_surf)
+    far = known & (profile.radius > r_surf * (1.0 + cfg.gap_jump))
+    return (np.bincount(profile.bearing[on], minlength=n),
+            np.bincount(profile.bearing[far], minlength=n))
+
+
+def _occluder(behind, bins, cfg):
+    """True when the surface at these bearings has a dense surface seen behind it: a box or a
+    wall end standing in front of the room's wall, not the jamb of a door in that wall."""
+    on, far = behind
+    bins = np.asarray(bins) % len(on)
+    total = on[bins].sum() + far[bins].sum()
+    return total > 0 and far[bins].sum() > cfg.gap_occluder_share * total
+
+
 def _on_wall(r, i, direction, cfg):
     """True if the surface continues from bearing i for ``gap_jamb_bins`` bearings in
-    ``direction`` (-1 or +1) within ``gap_jump`` of its range: a jamb is the end of a wall, not
-    a lone cluster of points in the room."""
+    ``direction`` (-1 or +1), no farther than ``gap_jump`` beyond its range: a jamb is the end of
+    a wall, not a lone cluster of points in the room. Nearer is allowed: a wall seen obliquely
+    comes nearer quickly away from the opening."""
     n = len(r)
     ri = r[i % n]
     for k in range(1, cfg.gap_jamb_bins + 1):
         rk = r[(i + direction * k) % n]
-        if not np.isfinite(rk) or abs(rk - ri) > cfg.gap_jump * ri:
+        if not np.isfinite(rk) or rk - ri > cfg.gap_jump * ri:
             return False
     return True
 

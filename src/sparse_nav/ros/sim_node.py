@@ -42,6 +42,11 @@ class SimNode:
         self.sim = Simulator(self.world, cfg)
         self.robot = cfg.robot
         self.rate_factor = float(rospy.get_param("~rate_factor", 1.0))
+        # A lossy link between the SLAM process and the rest (benches): whole SLAM outputs vanish.
+        self.drop_fraction = float(rospy.get_param("~slam_message_drop_fraction", 0.0))
+        if not 0.0 <= self.drop_fraction < 1.0:
+            raise ValueError(f"slam_message_drop_fraction must be in [0, 1): {self.drop_fraction}")
+        self.drop_rng = np.random.default_rng(cfg.seed + 1)
         self.physics_rate_hz = float(rospy.get_param("~physics_rate_hz", 50.0))
         self.all_points_rate_hz = float(rospy.get_param("~all_points_rate_hz", 2.0))
         self.odom_rate_hz = float(rospy.get_param("~odom_rate_hz", 20.0))
@@ -133,6 +138,8 @@ class SimNode:
                     time.sleep(ahead)
 
     def _publish_slam(self, out):
+        if self.drop_fraction and self.drop_rng.random() < self.drop_fraction:
+            return
         stamp = rospy.Time.from_sec(out.stamp_s)
         header = Header(stamp=stamp, frame_id=self.slam_frame)
         if self.publish_tracking_state:

@@ -1,0 +1,116 @@
+#!/usr/bin/python3
+"""The escape mission on generated worlds: success rate, sim time to the exit, losses survived.
+
+Each run is `roslaunch sparse_nav demo.launch world:=random:SEED robot:=ROBOT` (the whole stack on
+the built-in simulator, headless) and reads the run's report.json. The stress setting forces a
+SLAM loss every 30 sim-seconds and drops 10 % of the SLAM messages. Reads nothing from ../shared.
+A run costs minutes of wall time, so the default is small; `--worlds 50` is the full bench.
+"""
+import argparse
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+STRESS_LOSS_PERIOD_S = 30.0
+STRESS_DROP_FRACTION = 0.1
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        return s.getsockname()[1]
+
+
+def run_mission(world, robot, stress, limit_s, rate_factor, tmp):
+    """One mission; returns the report (or an error entry) with the run's wall time."""
+    out = os.path.join(tmp, f"{world.replace(':', '_')}_{robot}_{'stress' if stress else 'plain'}")
+    args = ["roslaunch", "-p", str(free_port()), "sparse_nav", "demo.launch", f"world:={world}",
+            f"robot:={robot}", f"output_dir:={out}", f"rate_factor:={rate_factor}",
+            f"sim_time_limit_s:={limit_s}"]
+    if stress:
+        losses = [STRESS_LOSS_PERIOD_S * k for k in range(1, int(limit_s // STRESS_LOSS_PERIOD_S))]
+        args += [f"force_loss_at_s:={json.dumps(losses)}",
+                 f"slam_message_drop_fraction:={STRESS_DROP_FRACTION}"]
+    env = dict(os.environ, ROS_HOME=os.path.join(tmp, "ros_home"))
+    start = time.monotonic()
+    try:
+        subprocess.run(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+                       timeout=limit_s / max(rate_factor, 0.5) * 3 + 300)
+    except subprocess.TimeoutExpired:
+        return {"world": world, "robot": robot, "error": "wall-time limit"}
+    wall_s = time.monotonic() - start
+    try:
+        with open(os.path.join(out, "report.json")) as f:
+            report = json.load(f)
+    except (OSError, ValueError) as exc:
+        return {"world": world, "robot": robot, "error": f"no report: {exc}"}
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+    return {"world": world, "robot": robot, "success": report["success"],
+            "sim_time_s": report["sim_time_s"], "tracking_losses": report["tracking_losses"],
+            "final_phase": report["final_phase"], "final_reason": report["final_reason"],
+            "exit_error_m": report["exit_error_m"], "wall_s": round(wall_s, 1)}
+
+
+def summarise(runs):
+    ok = [r for r in runs if r.get("success")]
+    return {"runs": len(runs), "successes": len(ok),
+            "success_rate": round(len(ok) / len(runs), 3) if runs else None,
+            "median_sim_time_to_exit_s": (sorted(r["sim_time_s"] for r in ok)[len(ok) // 2]
+                                          if ok else None),
+            "losses_survived": sum(r["tracking_losses"] for r in ok),
+            "errors": sum(1 for r in runs if "error" in r)}
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--worlds", type=int, default=3, help="generated worlds per robot kind")
+    parser.add_argument("--first-seed", type=int, default=1)
+    parser.add_argument("--robots", default="ground,drone")
+    parser.add_argument("--sim-time-limit-s", type=float, default=600.0)
+    parser.add_argument("--rate-factor", type=float, default=4.0)
+    parser.add_argument("--no-stress", action="store_true", help="skip the stressed runs")
+    parser.add_argument("--out", default=os.path.join(HERE, "results", "mission.json"))
+    args = parser.parse_args(argv)
+    if shutil.which("roslaunch") is None:
+        print("bench_mission: roslaunch not found; source the workspace (make bench does)")
+        return 1
+    tmp = tempfile.mkdtemp(prefix="bench_mission_")
+    table = {}
+    try:
+        for stress in ([False] if args.no_stress else [False, True]):
+            for robot in args.robots.split(","):
+                runs = []
+                for seed in range(args.first_seed, args.first_seed + args.worlds):
+                    run = run_mission(f"random:{seed}", robot, stress, args.sim_time_limit_s,
+                                      args.rate_factor, tmp)
+                    print(json.dumps(run), flush=True)
+                    runs.append(run)
+                key = f"{robot}{' stressed' if stress else ''}"
+                table[key] = {"summary": summarise(runs), "runs": runs}
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    print(f"{'setting':<16} {'runs':>5} {'success':>8} {'median t (s)':>13} {'losses survived':>16}")
+    for key, entry in table.items():
+        s = entry["summary"]
+        rate = "-" if s["success_rate"] is None else f"{100 * s['success_rate']:.0f}%"
+        median = "-" if s["median_sim_time_to_exit_s"] is None else f"{s['median_sim_time_to_exit_s']:.0f}"
+        print(f"{key:<16} {s['runs']:>5} {rate:>8} {median:>13} {s['losses_survived']:>16}")
+    os.makedirs(os.path.dirname(args.out), exist_ok=True)
+    with open(args.out, "w") as f:
+        json.dump({"bench": "mission", "data": "generated worlds random:SEED, none from ../shared",
+                   "stress": {"loss_every_s": STRESS_LOSS_PERIOD_S,
+                              "slam_message_drop_fraction": STRESS_DROP_FRACTION},
+                   "rate_factor": args.rate_factor, "sim_time_limit_s": args.sim_time_limit_s,
+                   "results": table}, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -31,6 +31,7 @@ class NavigatorBadInput(unittest.TestCase):
     def test_bad_inputs(self):
         w = self.world
         w.set_pose(1.0, 1.0)
+        w.publish_update(0, 0, np.zeros((2, 2), dtype=np.int8))  # before any map: ignored
         since = w.mark()
         w.map_pub.publish(occupancy_grid(np.zeros((0, 0), dtype=np.int8), RES))
         self.assert_refused(since, "rejected", "empty grid")
@@ -81,7 +82,7 @@ class NavigatorBadInput(unittest.TestCase):
         while not any(s.name == "navigator" for s in diag.status):
             diag = rospy.wait_for_message("/diagnostics", DiagnosticArray, timeout=30.0)
         values = {v.key: v.value for s in diag.status if s.name == "navigator" for v in s.values}
-        self.assertEqual(int(values["bad_inputs"]), 5)  # map, 2 goals, frame, update
+        self.assertEqual(int(values["bad_inputs"]), 5)  # map, 2 goals, frame, update (not the early one)
         self.assertEqual(values["map_size"], "60x40")
 
 

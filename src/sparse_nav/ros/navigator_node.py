@@ -122,6 +122,11 @@ class NavigatorNode:
 
     @_locked
     def _on_map_update(self, msg):
+        if self.nav.geometry is None:
+            # Before the first map (or right after a new SLAM map) an update has nothing to patch;
+            # the latched map that follows carries it anyway.
+            rospy.logwarn_throttle(5.0, "navigator: map update before a map, ignored")
+            return
         try:
             if msg.header.frame_id not in ("", self.map_frame):
                 raise NavigatorInputError(f"map update refused: frame {msg.header.frame_id!r}")

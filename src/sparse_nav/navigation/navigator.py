@@ -288,10 +288,10 @@ class Navigator:
             self.dstar = planning.DStarLite(self.grid, start, self.target_cell)
             self._search()
             self._adopt()
-        elif changed or start != self.dstar.start and self._deviates():
+        elif changed or (start != self.dstar.start and self._deviates()):
             self.dstar.move_start(start)
             self._search()
-            if not self.path_cells or changed and self._should_switch() or self._deviates():
+            if not self.path_cells or (changed and self._should_switch()) or self._deviates():
                 self._adopt()
         self._advance(start)
         if not self.path_cells:

@@ -325,3 +325,22 @@ def test_republished_path_keeps_progress_and_a_new_one_is_projected_whole():
     t = f.target(1.2, 0.9, math.pi / 2)
     assert t.remaining_m == pytest.approx(0.1)
     assert t.reached
+
+
+def test_go_to_wall_notices_a_stall_with_the_fail_counter():
+    c = MotionController(MotionConfig(wall_max_fails=3, wall_stall_fraction=0.3,
+                                      wall_back_off_m=0.0))
+    c.start_wall()
+    dt, advances = 0.1, [0.015, 0.0, 0.015, 0.001, 0.0, 0.0, 0.0, 0.0]
+    states = []
+    for i, advance in enumerate(advances):
+        c.set_tracked(200, i * dt)                   # the camera still sees plenty
+        d = c.step(i * dt)
+        states.append(d.state)
+        if not d.moving:
+            break
+        c.wall_moved(d.linear_m_s * dt, advance)
+    # One stalled step, a good one, then three stalled ones in a row.
+    assert states == [WALL_SEEKING] * 6 + [WALL_REACHED]
+    assert "stalled" in c.step(1.0).reason
+    assert c.wall.travelled_m == pytest.approx(0.031)

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""rostest: the cartographer keeps one fragment per SLAM map, merges, refuses bad input and names."""
+"""rostest: the cartographer keeps a fragment per SLAM map, merges, refuses bad input and names."""
 import os
 import shutil
 import threading

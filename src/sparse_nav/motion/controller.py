@@ -36,9 +36,9 @@ class MotionConfig:
     drone_goal_tolerance_m: float = 0.3    # >= the Tello's 20 cm smallest move
     drone_max_step_cm: int = 100       # longest forward move per command; the pose is read again
     drone_min_turn_deg: int = 8        # smaller heading errors are left uncorrected
-    pose_timeout_s: float = 0.25       # TF odom -> base_link at 20 Hz: about twice its period + slack
+    pose_timeout_s: float = 0.25       # TF odom -> base_link, 20 Hz: twice its period + slack
     map_timeout_s: float = 0.25        # TF map -> odom (slam_bridge, 20 Hz)
-    path_timeout_s: float = 0.5        # navigator/path, republished at 5 Hz: twice its period + slack
+    path_timeout_s: float = 0.5        # navigator/path, 5 Hz: twice its period + slack
     tracked_timeout_s: float = 0.5     # tracked points older than this count as none seen
     wall_min_tracked_points: int = 40  # go-to-wall: fewer tracked points is a miss
     wall_max_fails: int = 3            # consecutive misses that mean the wall is reached (seed 000)
@@ -46,6 +46,8 @@ class MotionConfig:
     wall_step_cm: int = 30             # drone's approach step
     wall_back_off_m: float = 0.3       # backs off this far once at the wall
     wall_max_distance_m: float = 6.0   # gives up when no wall was met within this
+    wall_stall_fraction: float = 0.3   # ground: advancing less than this share of the commanded
+    #                                    distance (wheel odometry) is a miss: pushing on something
 
     def validate(self):
         if self.robot not in ("ground", "drone"):
@@ -77,6 +79,8 @@ class MotionConfig:
             raise ValueError("wall_min_tracked_points must be >= 0, wall_max_fails >= 1")
         if self.wall_back_off_m < 0:
             raise ValueError("wall_back_off_m must be >= 0")
+        if not 0 <= self.wall_stall_fraction < 1:
+            raise ValueError("wall_stall_fraction must be in [0, 1)")
 
 
 class StalenessGuard:
@@ -120,9 +124,12 @@ def tello_command(heading_error_rad, distance_m, min_turn_deg, max_step_cm):
 class WallSeeker:
     """Seed 000's go-to-wall: forward until ORB-SLAM stops seeing key points, with a fail counter.
 
-    A miss is a step with fewer than ``wall_min_tracked_points`` tracked points (or none recent);
-    ``wall_max_fails`` consecutive misses mean the wall is reached, and a single good step resets
-    the counter, so momentary misses do not stop the approach early. A blocked move (collision)
+    A miss is a step with fewer than ``wall_min_tracked_points`` tracked points (or none recent),
+    or, where odometry measures the advance, a step that advanced less than
+    ``wall_stall_fraction`` of what was commanded (the robot pushes against the wall while its
+    camera, too close to focus on it, may still track points elsewhere). ``wall_max_fails``
+    consecutive misses mean the wall is reached, and a single good step resets the counter, so
+    momentary misses do not stop the approach early. A blocked move (a drone's "error: obstacle")
     is the wall at once. Then the robot backs off ``wall_back_off_m``.
     """
 
@@ -136,21 +143,25 @@ class WallSeeker:
         self.backed_m = 0.0
         self.success = False
         self.reason = ""
+        self._stalled = False
 
     def start(self):
         self.phase, self.fails, self.travelled_m, self.backed_m = self.SEEKING, 0, 0.0, 0.0
-        self.success, self.reason = False, ""
+        self.success, self.reason, self._stalled = False, "", False
 
     def observe(self, n_tracked):
         """Count one approach step's view (None: no recent tracked points)."""
         if self.phase != self.SEEKING:
             return
-        if n_tracked is None or n_tracked < self.cfg.wall_min_tracked_points:
+        lost = n_tracked is None or n_tracked < self.cfg.wall_min_tracked_points
+        why = "features lost" if lost else "stalled"
+        if lost or self._stalled:
             self.fails += 1
         else:
             self.fails = 0
+        self._stalled = False
         if self.fails >= self.cfg.wall_max_fails:
-            self._at_wall(f"features lost for {self.fails} steps")
+            self._at_wall(f"{why}, {self.fails} misses in a row")
         elif self.travelled_m >= self.cfg.wall_max_distance_m:
             self.phase, self.success = self.DONE, False
             self.reason = f"no wall within {self.cfg.wall_max_distance_m:.1f} m"
@@ -160,12 +171,17 @@ class WallSeeker:
         if self.phase == self.SEEKING:
             self._at_wall("blocked")
 
-    def moved(self, distance_m):
-        """Distance (m, signed: negative backwards) covered since the last call."""
+    def moved(self, commanded_m, measured_m=None):
+        """Distance commanded since the last call (m, signed: negative backwards) and, when
+        odometry measures it, the distance actually advanced along the heading (m)."""
         if self.phase == self.SEEKING:
-            self.travelled_m += max(distance_m, 0.0)
+            advanced = commanded_m if measured_m is None else measured_m
+            self.travelled_m += max(advanced, 0.0)
+            if measured_m is not None and commanded_m > 1e-6:
+                self._stalled = measured_m < self.cfg.wall_stall_fraction * commanded_m
         elif self.phase == self.BACKING:
-            self.backed_m += max(-distance_m, 0.0)
+            # Dead reckoning: backing off must end even if something behind holds the robot.
+            self.backed_m += max(-commanded_m, 0.0)
             if self.backed_m >= self.cfg.wall_back_off_m - 1e-9:
                 self.phase, self.success = self.DONE, True
 
@@ -272,8 +288,9 @@ class MotionController:
         self.wall.phase = WallSeeker.DONE
         self.idle_reason = reason
 
-    def wall_moved(self, distance_m):
-        self.wall.moved(distance_m)
+    def wall_moved(self, commanded_m, measured_m=None):
+        """Go-to-wall progress since the last step: commanded and measured distance (m)."""
+        self.wall.moved(commanded_m, measured_m)
 
     def wall_blocked(self):
         self.wall.blocked()

@@ -113,3 +113,20 @@ def test_auto_uses_gaps_when_confident_and_the_seed_otherwise():
     fallback = find_exit(xy, method="auto", up_axis=None, config=strict)
     assert fallback.method in ("auto:seed", "auto:concave_vertex", "auto:gaps")
     assert fallback.method != "auto:gaps" or fallback.exits[0][2] < 1.0
+
+
+def test_door_centre_follows_the_points_seen_through_the_opening():
+    n = 360
+    angles = (np.arange(n) + 0.5) * (2 * np.pi / n) - np.pi
+    profile = gapslib.Profile(centre=np.zeros(2), angles=angles, ranges=np.ones(n),
+                              bearing=np.zeros(0, dtype=int), radius=np.zeros(0))
+    a, b = profile.point(80), profile.point(100)
+    aperture = a + 0.75 * (b - a)
+    # A bundle of points beyond the bridge, all on the bearing of its three-quarter point.
+    q = np.outer(np.linspace(1.5, 2.5, 10), aperture / np.hypot(*aperture))
+    cfg = ExitFinderConfig()
+    centre = gapslib.door_centre(profile, q, 80, 100, np.ones(10, dtype=bool), cfg)
+    assert np.allclose(centre, aperture, atol=1e-9)
+    few = np.zeros(10, dtype=bool)
+    few[:cfg.gap_centre_min_points - 1] = True
+    assert np.allclose(gapslib.door_centre(profile, q, 80, 100, few, cfg), 0.5 * (a + b))

@@ -103,6 +103,8 @@ class ExitFinderConfig:
     gap_occluder_offset: int = 1       # away from the opening on) have more than this share of
     #                                    their points far behind the surface is a box or a wall
     #                                    end in front of a wall, not a door frame (1: never)
+    gap_centre_min_points: int = 5     # the door centre follows the mean bearing of the points
+    #                                    seen through it when at least this many were (0: never)
     gap_outline_smooth: int = 3        # outline: running median over this many bearings each side
     gap_max_exits: int = 5             # exits reported
     external_weight: float = 0.5       # confidence of a door gap given by the feature extractor
@@ -146,6 +148,7 @@ class ExitFinderConfig:
         integer("gap_max_exits", 1)
         integer("gap_outline_smooth", 0)
         integer("gap_occluder_offset", 0)
+        integer("gap_centre_min_points", 0)
         for name in ("collinear_ratio", "ipcl_radius", "line_near_dist", "rpcl_radius",
                      "distinct_offset", "max_corner_dist", "min_room_area", "sample_radius",
                      "dbscan_eps", "outside_margin", "alpha_radius", "outline_simplify",
@@ -168,8 +171,8 @@ class ExitFinderConfig:
         for name in ("distinct_angle_deg", "min_corner_angle_deg"):
             if not 0 <= getattr(self, name) < 90:
                 raise ValueError(f"{name} must be in [0, 90), got {getattr(self, name)}")
-        for name in ("gap_surface_share", "gap_notch_share", "external_weight", "gap_occluder_share",
-                     "auto_min_confidence"):
+        for name in ("gap_surface_share", "gap_notch_share", "external_weight",
+                     "gap_occluder_share", "auto_min_confidence"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
         if self.gap_min_width >= self.gap_max_width:

@@ -19,9 +19,10 @@ as the place around which the fewest points hide behind the nearest surface
    range) or becomes unknown, and at a later jamb bearing R it jumps back; the bearings in
    between lie beyond the straight *bridge* from the surface point of L to that of R, or are
    unknown. The bridge is the door (``gap_min_width`` to ``gap_max_width`` wide); its centre is
-   the exit. A wall in front of a farther one (an L-shaped room's inner corner, a box) is an
-   inward notch and never a door; a recessed door (seed 000's exit) and a door next to a corner
-   are notches like any other.
+   the exit, on the mean bearing of the points seen through it. A wall in front of a farther one
+   (an L-shaped room's inner corner, a box) is an inward notch and never a door, and a jamb with
+   a wall seen behind it is a box or a wall end, not a door frame; a recessed door (seed 000's
+   exit) and a door next to a corner are notches like any other.
 3. Confidence (:func:`door_confidence`): the points seen *through* the bridge (beyond it by more
    than ``gap_beyond_margin`` of the range) make it a door rather than a blank stretch of wall,
    and a door is about as wide as a door. Overlapping notches keep the best.
@@ -288,14 +289,41 @@ def _on_wall(r, i, direction, cfg):
     return True
 
 
-def through_count(profile, left, right, cfg):
-    """Step 3: points in the bearings strictly between the jambs that lie beyond the bridge."""
+def through_mask(profile, left, right, cfg):
+    """Step 3: the points in the bearings strictly between the jambs that lie beyond the
+    bridge, (N,) bool."""
     idx, bridge = _bridge_ranges(profile, left, right)
     if not len(idx):
-        return 0
+        return np.zeros(len(profile.radius), dtype=bool)
     limit = np.full(len(profile.angles), np.inf)
     limit[idx] = bridge * (1.0 + cfg.gap_beyond_margin)
-    return int(np.count_nonzero(profile.radius > limit[profile.bearing]))
+    return profile.radius > limit[profile.bearing]
+
+
+def through_count(profile, left, right, cfg):
+    """Step 3: how many points are seen through the opening (:func:`through_mask`)."""
+    return int(np.count_nonzero(through_mask(profile, left, right, cfg)))
+
+
+def door_centre(profile, q, left, right, through, cfg):
+    """Where on the bridge between the jambs the door is: along the mean bearing of the points
+    seen through it, which only the door's own aperture lets through (a jamb found a little off
+    the door's edge widens the bridge, not that bundle of bearings); the bridge's middle when
+    fewer than ``gap_centre_min_points`` were seen."""
+    a, b = profile.point(left), profile.point(right)
+    if cfg.gap_centre_min_points <= 0 or np.count_nonzero(through) < cfg.gap_centre_min_points:
+        return 0.5 * (a + b)
+    rel = q[through] - profile.centre
+    unit = rel / np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)[:, None]
+    d = unit.mean(axis=0)
+    ab = b - a
+    denom = d[0] * ab[1] - d[1] * ab[0]
+    if abs(denom) < 1e-12:
+        return 0.5 * (a + b)
+    diff = a - profile.centre
+    # Solve centre + t d = a + s ab for s, the position along the bridge.
+    s = (diff[0] * d[1] - diff[1] * d[0]) / denom
+    return a + float(np.clip(s, 0.0, 1.0)) * ab
 
 
 def outline_from_profile(profile, notches, cfg):
@@ -354,10 +382,11 @@ def find_gaps(q, cfg, rng=None, external=None, viewpoint=None):
     notches = find_notches(profile, cfg)
     cands = []
     for left, right in notches:
-        seen = through_count(profile, left, right, cfg)
+        through = through_mask(profile, left, right, cfg)
         a, b = profile.point(left), profile.point(right)
         width = float(np.hypot(*(b - a)))
-        cands.append([0.5 * (a + b), door_confidence(seen, width, cfg), left, right])
+        cands.append([door_centre(profile, q, left, right, through, cfg),
+                      door_confidence(int(np.count_nonzero(through)), width, cfg), left, right])
     cands = _suppress_overlaps(cands, len(profile.angles))
     cands = _fuse_external(cands, external, profile, cfg)
     cands.sort(key=lambda c: -c[1])

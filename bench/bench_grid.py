@@ -57,7 +57,7 @@ except ImportError as missing:
     BASELINE_MISSING = (f"not run: {missing} (apt-get install python3-shapely python3-rtree)")
 
 RESOLUTION_M = 0.05
-ALPHA_M = 0.25              # build_grid's default alpha radius; the baseline uses the same
+ALPHA_M = 0.2               # build_grid's default alpha radius; the baseline uses the same
 FLOOR_CLEARANCE_M = 0.15    # build_grid's default obstacle band above the floor
 CEILING_HEIGHT_M = 2.2
 CLOUD_SEED = 4              # seed of every generated cloud

@@ -33,10 +33,8 @@ from sparse_nav.sim import SimConfig, Simulator, list_worlds, load_world  # noqa
 BUILD_GRID = os.environ.get("SPARSE_NAV_BUILD_GRID",
                             os.path.join(HERE, "..", "build", "ws", "devel", "lib", "sparse_nav",
                                          "build_grid"))
-# The same values as config/cloud_filter.yaml, ground_mapper.yaml and grid_builder.yaml.
-PIPELINE_ARGS = ["--up-axis", "z", "--density-radius", "0.3", "--min-neighbors", "5",
-                 "--leaf", "0.05", "--alpha", "0.2", "--floor-distance", "0.1",
-                 "--floor-planes", "12"]
+# build_grid's defaults are config/cloud_filter.yaml's, ground_mapper.yaml's and grid_builder.yaml's.
+PIPELINE_ARGS = ["--up-axis", "z"]
 
 
 def scanned_cloud(world):

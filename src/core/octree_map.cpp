@@ -5,7 +5,11 @@
 #include <exception>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <sstream>
+#include <unordered_map>
+#include <utility>
+#include <vector>
 #include <stdexcept>
 
 #include <octomap/OcTree.h>
@@ -136,6 +140,12 @@ void OctreeMapConfig::validate() const
   {
     throw std::invalid_argument("OctreeMapConfig: max_range_m must be finite (< 0 for no limit)");
   }
+  const double ratio = free_space_resolution_m / resolution_m;
+  const double levels = std::round(std::log2(ratio));
+  if (!std::isfinite(ratio) || levels < 0.0 || levels > 8.0 || std::abs(ratio - std::pow(2.0, levels)) > 1e-6 * ratio)
+  {
+    throw std::invalid_argument("OctreeMapConfig: free_space_resolution_m must be resolution_m times 1, 2, 4, ... 256");
+  }
   if (!(prob_hit > 0.5 && prob_hit < 1.0))
   {
     throw std::invalid_argument("OctreeMapConfig: prob_hit must be in (0.5, 1)");
@@ -149,12 +159,19 @@ void OctreeMapConfig::validate() const
 OctreeMap::OctreeMap(const OctreeMapConfig& config) : config_(config)
 {
   config_.validate();
-  tree_ = std::make_unique<octomap::OcTree>(config_.resolution_m);
-  tree_->setProbHit(config_.prob_hit);
-  tree_->setProbMiss(config_.prob_miss);
+  free_levels_ = static_cast<unsigned>(std::lround(std::log2(config_.free_space_resolution_m / config_.resolution_m)));
+  resetTree();
 }
 
 OctreeMap::~OctreeMap() = default;
+
+void OctreeMap::resetTree()
+{
+  tree_ = std::make_unique<octomap::OcTree>(config_.resolution_m);
+  tree_->setProbHit(config_.prob_hit);
+  tree_->setProbMiss(config_.prob_miss);
+  inserted_.clear();
+}
 
 double OctreeMap::maxCoordinate() const
 {
@@ -170,28 +187,334 @@ bool OctreeMap::inRange(const Eigen::Vector3d& p) const
 
 OctreeInsertStats OctreeMap::insert(const PointList& points, const Eigen::Vector3d& sensor_origin)
 {
+  return insert(points, std::vector<Eigen::Vector3d>{ sensor_origin }, std::vector<std::size_t>(points.size(), 0));
+}
+
+namespace
+{
+using Cell = Eigen::Array3i;  // coarse voxel index: fine key >> levels, per axis
+
+std::uint64_t packCell(const Cell& c)
+{
+  return (static_cast<std::uint64_t>(static_cast<std::uint16_t>(c.x())) << 32) |
+         (static_cast<std::uint64_t>(static_cast<std::uint16_t>(c.y())) << 16) |
+         static_cast<std::uint64_t>(static_cast<std::uint16_t>(c.z()));
+}
+
+/// Marks on coarse voxels: dense over a bounding box when it is small enough, hashed otherwise.
+class CellMarks
+{
+public:
+  static constexpr std::uint8_t kRay = 1, kEndpoint = 2;
+
+  CellMarks(const Cell& lo, const Cell& hi) : lo_(lo), size_(hi - lo + 1)
+  {
+    const double n = static_cast<double>(size_.x()) * size_.y() * size_.z();
+    if (n <= 64.0 * 1024 * 1024)
+    {
+      dense_.assign(static_cast<std::size_t>(n), 0);
+    }
+  }
+  /// Sets bits on c; returns the bits it had before.
+  std::uint8_t mark(const Cell& c, std::uint8_t bits)
+  {
+    // Rounding at a cell corner may step a traversal one cell past the box; such cells are skipped.
+    if (((c - lo_) < 0).any() || ((c - lo_) >= size_).any())
+    {
+      return 0;
+    }
+    if (!dense_.empty())
+    {
+      std::uint8_t& v = dense_[index(c)];
+      const std::uint8_t before = v;
+      v |= bits;
+      return before;
+    }
+    std::uint8_t& v = sparse_[packCell(c)];
+    const std::uint8_t before = v;
+    v |= bits;
+    return before;
+  }
+  /// Calls visit(cell, bits) for every marked cell, in a fixed order.
+  template <typename Visit>
+  void forEach(Visit visit) const
+  {
+    if (!dense_.empty())
+    {
+      std::size_t i = 0;
+      for (int z = 0; z < size_.z(); ++z)
+        for (int y = 0; y < size_.y(); ++y)
+          for (int x = 0; x < size_.x(); ++x, ++i)
+            if (dense_[i])
+              visit(Cell(lo_.x() + x, lo_.y() + y, lo_.z() + z), dense_[i]);
+      return;
+    }
+    std::vector<std::pair<std::uint64_t, std::uint8_t>> items(sparse_.begin(), sparse_.end());
+    std::sort(items.begin(), items.end());
+    for (const auto& kv : items)
+    {
+      visit(Cell(static_cast<int>((kv.first >> 32) & 0xffff), static_cast<int>((kv.first >> 16) & 0xffff),
+                 static_cast<int>(kv.first & 0xffff)),
+            kv.second);
+    }
+  }
+
+private:
+  std::size_t index(const Cell& c) const
+  {
+    const Cell d = c - lo_;
+    return (static_cast<std::size_t>(d.z()) * size_.y() + d.y()) * size_.x() + d.x();
+  }
+  Cell lo_, size_;
+  std::vector<std::uint8_t> dense_;
+  std::unordered_map<std::uint64_t, std::uint8_t> sparse_;
+};
+
+/// Visits the coarse cells on the segment from a to b (metres), Amanatides-Woo; includes the cell
+/// of a, and the cell of b only when include_end. Cells are `size` metres, cell i starting at
+/// (i - offset) * size.
+template <typename Visit>
+void traverse(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca, const Cell& cb, double size,
+              int offset, bool include_end, Visit visit)
+{
+  Cell c = ca;
+  const Eigen::Vector3d d = b - a;
+  Eigen::Vector3d t_max, t_delta;
+  Cell step;
+  for (int i = 0; i < 3; ++i)
+  {
+    step[i] = cb[i] > ca[i] ? 1 : (cb[i] < ca[i] ? -1 : 0);
+    if (step[i] == 0 || d[i] == 0.0)
+    {
+      step[i] = 0;
+      t_max[i] = t_delta[i] = std::numeric_limits<double>::infinity();
+      continue;
+    }
+    const double boundary = (static_cast<double>(c[i] - offset) + (step[i] > 0 ? 1.0 : 0.0)) * size;
+    t_max[i] = (boundary - a[i]) / d[i];
+    t_delta[i] = size / std::abs(d[i]);
+  }
+  int remaining = (cb - ca).abs().sum();
+  while (remaining > 0)
+  {
+    visit(c);
+    int axis = 0;
+    if (t_max[1] < t_max[axis])
+      axis = 1;
+    if (t_max[2] < t_max[axis])
+      axis = 2;
+    if (step[axis] == 0)
+      break;
+    c[axis] += step[axis];
+    t_max[axis] += t_delta[axis];
+    --remaining;
+  }
+  if (include_end || (c != cb).any())
+  {
+    visit(c);
+  }
+}
+
+/// Applies a log-odds update to every leaf under node; unknown children become free leaves.
+void updateSubtree(octomap::OcTree& tree, octomap::OcTreeNode* node, unsigned depth, float log_odds)
+{
+  if (depth >= tree.getTreeDepth() || !tree.nodeHasChildren(node))
+  {
+    tree.updateNodeLogOdds(node, log_odds);
+    return;
+  }
+  for (unsigned i = 0; i < 8; ++i)
+  {
+    if (tree.nodeChildExists(node, i))
+    {
+      updateSubtree(tree, tree.getNodeChild(node, i), depth + 1, log_odds);
+    }
+    else
+    {
+      tree.updateNodeLogOdds(tree.createNodeChild(node, i), log_odds);
+    }
+  }
+  node->updateOccupancyChildren();
+}
+
+/// Updates the node of `key` at `target_depth` (a coarse leaf, created or split as needed) and the
+/// inner nodes above it.
+void updateAtDepth(octomap::OcTree& tree, octomap::OcTreeNode* node, bool just_created, const octomap::OcTreeKey& key,
+                   unsigned depth, unsigned target_depth, float log_odds)
+{
+  if (depth == target_depth)
+  {
+    updateSubtree(tree, node, depth, log_odds);
+    return;
+  }
+  const unsigned pos = octomap::computeChildIdx(key, static_cast<int>(tree.getTreeDepth() - 1 - depth));
+  bool created = false;
+  if (!tree.nodeChildExists(node, pos))
+  {
+    if (!tree.nodeHasChildren(node) && !just_created)
+    {
+      tree.expandNode(node);  // a pruned leaf: its children inherit its value
+    }
+    else
+    {
+      tree.createNodeChild(node, pos);
+      created = true;
+    }
+  }
+  updateAtDepth(tree, tree.getNodeChild(node, pos), created, key, depth + 1, target_depth, log_odds);
+  node->updateOccupancyChildren();
+}
+}  // namespace
+
+OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<Eigen::Vector3d>& origins,
+                                    const std::vector<std::size_t>& origin_of_point)
+{
   OctreeInsertStats stats;
-  if (!inRange(sensor_origin))
+  if (origin_of_point.size() != points.size())
+  {
+    throw std::invalid_argument("OctreeMap::insert: origin_of_point must have one entry per point");
+  }
+  std::vector<char> origin_ok(origins.size(), 0);
+  for (std::size_t c = 0; c < origins.size(); ++c)
+  {
+    origin_ok[c] = inRange(origins[c]) ? 1 : 0;
+  }
+  if (std::find(origin_ok.begin(), origin_ok.end(), 1) == origin_ok.end())
   {
     stats.origin_ok = false;
     stats.n_out_of_range = points.size();
     return stats;
   }
-  octomap::Pointcloud cloud;
-  cloud.reserve(points.size());
-  for (const auto& p : points)
+  const unsigned levels = free_levels_;
+  const double coarse = config_.resolution_m * static_cast<double>(1U << levels);
+  const int offset = 32768 >> levels;
+  const double max_range = config_.max_range_m;
+  auto cellOf = [&](const octomap::OcTreeKey& k) { return Cell(k[0] >> levels, k[1] >> levels, k[2] >> levels); };
+  auto centreOf = [&](const Cell& c) {
+    return Eigen::Vector3d((c.x() - offset + 0.5) * coarse, (c.y() - offset + 0.5) * coarse,
+                           (c.z() - offset + 0.5) * coarse);
+  };
+
+  // Endpoints: new fine voxels become hits; every endpoint's coarse voxel is kept from being freed.
+  struct Endpoint
   {
-    if (!inRange(p.cast<double>()))
+    octomap::OcTreeKey key;
+    Cell cell;
+    std::size_t origin;
+    bool is_new;
+  };
+  std::vector<Endpoint> endpoints;
+  endpoints.reserve(points.size());
+  Cell lo = Cell::Constant(std::numeric_limits<int>::max()), hi = Cell::Constant(std::numeric_limits<int>::lowest());
+  std::vector<Cell> origin_cells(origins.size(), Cell::Zero());
+  for (std::size_t c = 0; c < origins.size(); ++c)
+  {
+    if (origin_ok[c])
+    {
+      origin_cells[c] = cellOf(tree_->coordToKey(origins[c].x(), origins[c].y(), origins[c].z()));
+      lo = lo.min(origin_cells[c]);
+      hi = hi.max(origin_cells[c]);
+    }
+  }
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    const Eigen::Vector3d p = points[i].cast<double>();
+    const std::size_t o = origin_of_point[i];
+    if (o >= origins.size() || !origin_ok[o] || !inRange(p))
     {
       ++stats.n_out_of_range;
       continue;
     }
-    cloud.push_back(p.x(), p.y(), p.z());
+    Endpoint e;
+    e.key = tree_->coordToKey(p.x(), p.y(), p.z());
+    e.cell = cellOf(e.key);
+    e.origin = o;
+    const std::uint64_t packed = (static_cast<std::uint64_t>(e.key[0]) << 32) |
+                                 (static_cast<std::uint64_t>(e.key[1]) << 16) | e.key[2];
+    e.is_new = inserted_.insert(packed).second;
+    endpoints.push_back(e);
+    lo = lo.min(e.cell);
+    hi = hi.max(e.cell);
   }
-  stats.n_inserted = cloud.size();
-  const octomap::point3d origin(static_cast<float>(sensor_origin.x()), static_cast<float>(sensor_origin.y()),
-                                static_cast<float>(sensor_origin.z()));
-  tree_->insertPointCloud(cloud, origin, config_.max_range_m, false, true);
+  stats.n_inserted = endpoints.size();
+  if (endpoints.empty())
+  {
+    return stats;
+  }
+
+  CellMarks marks(lo, hi);
+  for (const auto& e : endpoints)
+  {
+    marks.mark(e.cell, CellMarks::kEndpoint);
+  }
+  // One ray per (camera, coarse endpoint voxel) among the new endpoints, to the voxel's centre.
+  std::unordered_set<std::uint64_t> cast;
+  const float hit = tree_->getProbHitLog();
+  std::vector<octomap::OcTreeKey> hits;
+  for (const auto& e : endpoints)
+  {
+    if (!e.is_new)
+    {
+      continue;
+    }
+    ++stats.n_new_voxels;
+    const Eigen::Vector3d& origin = origins[e.origin];
+    const Eigen::Vector3d end = centreOf(e.cell);
+    const bool in_range = max_range < 0.0 || (end - origin).norm() <= max_range;
+    if (in_range)
+    {
+      hits.push_back(e.key);
+    }
+    if (!cast.insert(packCell(e.cell) ^ (static_cast<std::uint64_t>(e.origin) << 48)).second)
+    {
+      continue;
+    }
+    ++stats.n_rays;
+    if (in_range)
+    {
+      traverse(origin, end, origin_cells[e.origin], e.cell, coarse, offset, false,
+               [&](const Cell& c) { marks.mark(c, CellMarks::kRay); });
+    }
+    else
+    {
+      const Eigen::Vector3d stop = origin + (end - origin).normalized() * max_range;
+      const Cell cs = cellOf(tree_->coordToKey(stop.x(), stop.y(), stop.z()));
+      if (((cs - lo) >= 0).all() && ((hi - cs) >= 0).all())
+      {
+        traverse(origin, stop, origin_cells[e.origin], cs, coarse, offset, true,
+                 [&](const Cell& c) { marks.mark(c, CellMarks::kRay); });
+      }
+    }
+  }
+  // Hits first: they create the root a first insertion needs; free voxels never share a coarse
+  // voxel with an endpoint, so the order does not change the result.
+  // Many hits: update lazily and fix the inner nodes in one pass; few: along their own paths.
+  const bool lazy = hits.size() > 4096;
+  for (const auto& k : hits)
+  {
+    tree_->updateNode(k, hit, lazy);
+  }
+  if (lazy)
+  {
+    tree_->updateInnerOccupancy();
+  }
+  octomap::OcTreeNode* root = tree_->getRoot();
+  if (root)
+  {
+    const float miss = tree_->getProbMissLog();
+    const unsigned target_depth = tree_->getTreeDepth() - levels;
+    marks.forEach([&](const Cell& c, std::uint8_t bits) {
+      if (bits != CellMarks::kRay)
+      {
+        return;
+      }
+      const octomap::OcTreeKey key(static_cast<octomap::key_type>(c.x() << levels),
+                                   static_cast<octomap::key_type>(c.y() << levels),
+                                   static_cast<octomap::key_type>(c.z() << levels));
+      updateAtDepth(*tree_, root, false, key, 0, target_depth, miss);
+      ++stats.n_free_voxels;
+    });
+  }
   return stats;
 }
 
@@ -284,7 +607,7 @@ std::size_t OctreeMap::numLeafNodes() const
 
 void OctreeMap::clear()
 {
-  tree_->clear();
+  resetTree();
 }
 
 IoStatus OctreeMap::save(const std::string& path) const
@@ -344,6 +667,8 @@ IoStatus OctreeMap::load(const std::string& path)
       return status;
     }
     tree_ = std::move(fresh);
+    // The loaded tree's endpoints are unknown: points inserted later all count as new.
+    inserted_.clear();
     status.ok = true;
   }
   catch (const std::exception& e)

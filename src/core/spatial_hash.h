@@ -71,17 +71,20 @@ public:
                     static_cast<std::int64_t>(std::floor(p.z() * inv_)) };
   }
 
-  /// Calls visit(index) for the points in the 27 cells around p until visit returns false.
+  /// Calls visit(index) for the points in the 27 cells around p until visit returns false; p's own
+  /// cell comes first, so a count that stops early mostly needs one lookup.
   template <typename Visit>
   void forEachNear(const Eigen::Vector3f& p, Visit visit) const
   {
     const CellKey c = key(p);
-    for (std::int64_t dz = -1; dz <= 1; ++dz)
+    static const int kOrder[3] = { 0, -1, 1 };
+    for (int iz : kOrder)
     {
-      for (std::int64_t dy = -1; dy <= 1; ++dy)
+      for (int iy : kOrder)
       {
-        for (std::int64_t dx = -1; dx <= 1; ++dx)
+        for (int ix : kOrder)
         {
+          const std::int64_t dx = ix, dy = iy, dz = iz;
           auto it = ids_.find(CellKey{ c.x + dx, c.y + dy, c.z + dz });
           if (it == ids_.end())
           {

@@ -40,17 +40,24 @@ void GroundMapperNodelet::onInit()
 {
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
+  // The input is the metric, z-up map frame: heights are measured from the floor plane and the
+  // output stays in the map frame (no re-alignment).
+  GroundMapperConfig config;
+  config.align_to_floor = false;
   std::string up_axis = "z";
   loadParam(pnh, "up_axis", up_axis);
-  floor_config_.up_axis = axisFromString(up_axis);
-  loadParam(pnh, "max_tilt_deg", floor_config_.max_tilt_deg);
-  loadParam(pnh, "floor_distance_threshold_m", floor_config_.distance_threshold_m);
-  loadParam(pnh, "floor_min_inliers", floor_config_.min_inliers);
-  loadParam(pnh, "floor_max_planes", floor_config_.max_planes);
-  loadParam(pnh, "floor_clearance_m", floor_clearance_m_);
-  loadParam(pnh, "ceiling_height_m", ceiling_height_m_);
-  loadParam(pnh, "octree_resolution_m", octree_config_.resolution_m);
-  loadParam(pnh, "octree_max_range_m", octree_config_.max_range_m);
+  config.floor.up_axis = axisFromString(up_axis);
+  loadParam(pnh, "max_tilt_deg", config.floor.max_tilt_deg);
+  loadParam(pnh, "floor_distance_threshold_m", config.floor.distance_threshold_m);
+  loadParam(pnh, "floor_min_inliers", config.floor.min_inliers);
+  loadParam(pnh, "floor_max_planes", config.floor.max_planes);
+  loadParam(pnh, "keep_floor", config.keep_floor);
+  loadParam(pnh, "floor_clearance_m", config.floor_clearance_m);
+  loadParam(pnh, "ceiling_height_m", config.ceiling_height_m);
+  loadParam(pnh, "octree_resolution_m", config.octree.resolution_m);
+  loadParam(pnh, "free_space_resolution_m", config.octree.free_space_resolution_m);
+  loadParam(pnh, "octree_max_range_m", config.octree.max_range_m);
+  loadParam(pnh, "free_space_filter", config.free_space_filter);
   loadParam(pnh, "map_frame", map_frame_);
   loadParam(pnh, "camera_frame", camera_frame_);
   const char* home = std::getenv("HOME");
@@ -59,12 +66,9 @@ void GroundMapperNodelet::onInit()
   if (map_dir_.rfind("~/", 0) == 0)
     map_dir_ = std::string(home ? home : "/tmp") + map_dir_.substr(1);
   loadParam(pnh, "markers_period_s", markers_period_s_);
-  floor_config_.validate();
-  octree_config_.validate();
-  if (!(ceiling_height_m_ > floor_clearance_m_))
-    throw std::invalid_argument("ceiling_height_m must be above floor_clearance_m");
+  config.validate();
 
-  octree_.reset(new OctreeMap(octree_config_));
+  mapper_.reset(new GroundMapper(config));
   tf_buffer_.reset(new tf2_ros::Buffer(ros::Duration(30.0)));
   tf_listener_.reset(new tf2_ros::TransformListener(*tf_buffer_, nh));
   obstacles_pub_ = nh.advertise<sensor_msgs::PointCloud2>("cloud/obstacles", 2);
@@ -92,11 +96,11 @@ bool GroundMapperNodelet::cameraPosition(const ros::Time& stamp, Eigen::Vector3d
 void GroundMapperNodelet::diagnose(bool ok, const std::string& message)
 {
   publishDiagnostics(diag_pub_, "ground_mapper", ok, message,
-                     { { "floor_found", has_floor_ ? "true" : "false" },
-                       { "floor_tilt_deg", has_floor_ ? std::to_string(floor_.plane.tilt_deg) : "nan" },
+                     { { "floor_found", mapper_->hasFloor() ? "true" : "false" },
+                       { "floor_tilt_deg", mapper_->hasFloor() ? std::to_string(mapper_->floor().plane.tilt_deg) : "nan" },
                        { "obstacle_points", std::to_string(n_obstacles_) },
                        { "points_in_free_space", std::to_string(n_freed_) },
-                       { "octree_leaves", std::to_string(octree_->numLeafNodes()) },
+                       { "octree_leaves", std::to_string(mapper_->octree()->numLeafNodes()) },
                        { "clouds_rejected", std::to_string(n_rejected_) },
                        { "last_ms", std::to_string(last_ms_) } });
 }
@@ -125,63 +129,38 @@ void GroundMapperNodelet::onCloud(const sensor_msgs::PointCloud2ConstPtr& msg)
       diagnose(false, error.empty() ? "empty cloud" : error);
       return;
     }
-    const FloorResult floor = FloorDetector(floor_config_).detect(points);
-    if (floor.found)
-    {
-      floor_ = floor;
-      has_floor_ = true;
-    }
-    else
-    {
-      NODELET_WARN_THROTTLE(10.0, "ground_mapper: no floor found (%s)%s", floor.reason.c_str(),
-                            has_floor_ ? "; keeping the last floor" : "");
-    }
     Eigen::Vector3d camera;
     if (cameraPosition(msg->header.stamp, camera))
     {
       last_camera_ = camera;
       has_camera_ = true;
     }
-    if (!has_floor_)
+    if (!has_camera_)
     {
-      diagnose(false, "no floor yet: " + floor.reason);
+      // Rays need a camera: until the first pose arrives, clouds wait (the last map stays).
+      ++n_rejected_;
+      diagnose(false, "no camera pose yet (TF " + map_frame_ + " -> " + camera_frame_ + ")");
       return;
     }
-    // Heights are measured from the floor plane, so a slightly tilted or offset map still slices right.
-    const Eigen::Vector3d n = floor_.plane.normal;
-    const double d = floor_.plane.d;
-    // Every update casts rays from the current camera to all points: monocular depth noise smears
-    // points into openings (a doorway collects the smear of the room seen through it), and the
-    // rays through such an opening outvote those stray hits in the octree.
-    if (has_camera_)
+    const GroundMapperResult result = mapper_->process(points, { last_camera_ });
+    if (!result.ok)
     {
-      const OctreeInsertStats stats = octree_->insert(points, last_camera_);
-      if (stats.n_out_of_range > 0 || !stats.origin_ok)
-        NODELET_WARN_THROTTLE(5.0, "ground_mapper: %zu points outside the octree's range%s", stats.n_out_of_range,
-                              stats.origin_ok ? "" : ", camera outside it too");
+      NODELET_WARN_THROTTLE(10.0, "ground_mapper: no floor found (%s)", result.status.c_str());
+      diagnose(false, "no floor yet: " + result.status);
+      return;
     }
-    PointList obstacles, floor_points;
-    std::size_t n_freed = 0;
-    for (const auto& p : points)
-    {
-      const double h = n.dot(p.cast<double>()) + d;
-      if (h < floor_clearance_m_)
-      {
-        if (h > -floor_clearance_m_)
-          floor_points.push_back(p);
-      }
-      else if (h <= ceiling_height_m_)
-      {
-        if (octree_->query(p.cast<double>()) == VoxelState::kFree)
-          ++n_freed;
-        else
-          obstacles.push_back(p);
-      }
-    }
-    n_freed_ = n_freed;
-    n_obstacles_ = obstacles.size();
-    obstacles_pub_.publish(pointsToCloud(obstacles, msg->header));
-    floor_points_pub_.publish(pointsToCloud(floor_points, msg->header));
+    if (!result.floor_warning.empty())
+      NODELET_WARN_THROTTLE(10.0, "ground_mapper: no floor found (%s); keeping the last floor",
+                            result.floor_warning.c_str());
+    if (result.octree.n_out_of_range > 0 || !result.octree.origin_ok)
+      NODELET_WARN_THROTTLE(5.0, "ground_mapper: %zu points outside the octree's range%s", result.octree.n_out_of_range,
+                            result.octree.origin_ok ? "" : ", camera outside it too");
+    n_freed_ = result.n_freed;
+    n_obstacles_ = result.obstacles.size();
+    obstacles_pub_.publish(pointsToCloud(result.obstacles, msg->header));
+    floor_points_pub_.publish(pointsToCloud(result.floor_points, msg->header));
+    const Eigen::Vector3d n = result.floor.plane.normal;
+    const double d = result.floor.plane.d;
 
     FloorEstimate plane;
     plane.header = msg->header;
@@ -189,9 +168,9 @@ void GroundMapperNodelet::onCloud(const sensor_msgs::PointCloud2ConstPtr& msg)
     plane.normal.y = n.y();
     plane.normal.z = n.z();
     plane.d = d;
-    plane.tilt_deg = floor_.plane.tilt_deg;
-    plane.n_inliers = static_cast<std::uint32_t>(floor_.plane.n_inliers);
-    plane.camera_height = has_camera_ ? n.dot(last_camera_) + d : std::nan("");
+    plane.tilt_deg = result.floor.plane.tilt_deg;
+    plane.n_inliers = static_cast<std::uint32_t>(result.floor.plane.n_inliers);
+    plane.camera_height = n.dot(last_camera_) + d;
     plane_pub_.publish(plane);
     publishMarkers(msg->header);
     last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -212,9 +191,10 @@ void GroundMapperNodelet::publishMarkers(const std_msgs::Header& header)
   floor.header = header;
   floor.ns = "floor";
   floor.type = visualization_msgs::Marker::CUBE;
-  const Eigen::Vector3d n = floor_.plane.normal;
-  const Eigen::Vector3d centre = has_camera_ ? last_camera_ - (n.dot(last_camera_) + floor_.plane.d) * n
-                                             : Eigen::Vector3d(-floor_.plane.d * n);
+  const FloorPlane& plane = mapper_->floor().plane;
+  const Eigen::Vector3d n = plane.normal;
+  const Eigen::Vector3d centre = has_camera_ ? last_camera_ - (n.dot(last_camera_) + plane.d) * n
+                                             : Eigen::Vector3d(-plane.d * n);
   const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n);
   floor.pose.position.x = centre.x();
   floor.pose.position.y = centre.y();
@@ -235,12 +215,12 @@ void GroundMapperNodelet::publishMarkers(const std_msgs::Header& header)
   voxels.ns = "occupied_voxels";
   voxels.type = visualization_msgs::Marker::CUBE_LIST;
   voxels.pose.orientation.w = 1.0;
-  voxels.scale.x = voxels.scale.y = voxels.scale.z = octree_config_.resolution_m;
+  voxels.scale.x = voxels.scale.y = voxels.scale.z = mapper_->config().octree.resolution_m;
   voxels.color.r = 0.3f;
   voxels.color.g = 0.3f;
   voxels.color.b = 1.0f;
   voxels.color.a = 0.6f;
-  for (const auto& c : octree_->occupiedCenters())
+  for (const auto& c : mapper_->octree()->occupiedCenters())
   {
     geometry_msgs::Point p;
     p.x = c.x();
@@ -276,7 +256,7 @@ bool GroundMapperNodelet::onSave(MapFile::Request& req, MapFile::Response& res)
   // Written beside the target and renamed over it, so a crash never leaves a half-written map.
   const std::string path = mapPath(req.name);
   const std::string tmp = path + ".tmp";
-  const IoStatus status = octree_->save(tmp);
+  const IoStatus status = mapper_->octree()->save(tmp);
   if (!status.ok)
   {
     std::remove(tmp.c_str());
@@ -310,7 +290,7 @@ bool GroundMapperNodelet::onLoad(MapFile::Request& req, MapFile::Response& res)
     res.message = "invalid name '" + req.name + "': use 1-64 letters, digits, '_' or '-'";
     return true;
   }
-  const IoStatus status = octree_->load(mapPath(req.name));
+  const IoStatus status = mapper_->octree()->load(mapPath(req.name));
   res.success = status.ok;
   res.message = status.ok ? "loaded " + mapPath(req.name) : status.message + " (the current octree is kept)";
   if (!status.ok)
@@ -321,8 +301,7 @@ bool GroundMapperNodelet::onLoad(MapFile::Request& req, MapFile::Response& res)
 bool GroundMapperNodelet::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res)
 {
   std::lock_guard<std::mutex> lock(mutex_);
-  octree_->clear();
-  has_floor_ = false;
+  mapper_->reset();
   res.success = true;
   res.message = "octree and floor cleared";
   return true;

@@ -1,9 +1,11 @@
 // build_grid: run the sparse_nav perception core on a point file and write a map_server map.
 //
-//   build_grid FILE --out PREFIX [--up-axis -y] [--resolution R] [--scale METRES_PER_UNIT] [--json] ...
+//   build_grid FILE --out PREFIX [--up-axis -y] [--resolution R] [--scale METRES_PER_UNIT] [--json]
+//              [--update FILE2] ...
 //
 // Writes PREFIX.pgm + PREFIX.yaml (map_server format) and PREFIX.png (a picture with the alpha
-// polygons). Exit status: 0 ok, 2 bad input or no floor, 1 cannot write the outputs.
+// polygons). Exit status: 0 ok, 2 bad input or no floor, 1 cannot write the outputs. The defaults
+// are those of the core Config structs, which config/*.yaml repeat for the nodelets.
 
 #include <chrono>
 #include <cmath>
@@ -26,36 +28,54 @@
 
 namespace
 {
-const char* const kUsage =
-    "usage: build_grid FILE --out PREFIX [options]\n"
-    "\n"
-    "Reads a point file (CSV/TXT/XYZ columns, PLY ascii/binary, PCD), finds the floor, and writes\n"
-    "PREFIX.pgm + PREFIX.yaml (map_server format) and PREFIX.png.\n"
-    "\n"
-    "options:\n"
-    "  --up-axis AXIS          nominal up axis of the file: x, -x, y, -y, z, -z (default -y: raw\n"
-    "                          ORB-SLAM worlds are the first camera's optical frame, y down)\n"
-    "  --resolution R          grid cell size in metres (default 0.05)\n"
-    "  --scale S               metres per SLAM unit (default 1). Monocular ORB-SLAM has no metric\n"
-    "                          scale: without S every metric option below is in SLAM units\n"
-    "  --max-tilt-deg D        largest floor tilt from the up axis (default 15)\n"
-    "  --floor-distance M      RANSAC inlier distance of the floor plane (default 0.03)\n"
-    "  --floor-planes N        near-horizontal planes tried for the floor (default 4)\n"
-    "  --floor-clearance M     map z below which points are floor (default 0.15)\n"
-    "  --ceiling-height M      map z above which points are ceiling (default 2.2)\n"
-    "  --density METHOD        none, radius or ipcl (default radius)\n"
-    "  --density-radius M      density filter radius (default 0.1)\n"
-    "  --min-neighbors K       density filter neighbour count (default 3)\n"
-    "  --leaf M                voxel leaf size, 0 disables the voxel grid (default 0.02)\n"
-    "  --alpha M               alpha-shape radius in metres (default 0.25)\n"
-    "  --auto-alpha            choose alpha from the nearest-neighbour spacing\n"
-    "  --no-octree             skip the OctoMap octree\n"
-    "  --save-octree           also write PREFIX.bt\n"
-    "  --json                  print {\"n_points\", \"stages_ms\", \"total_ms\", floor, grid} on stdout\n";
+std::string usage()
+{
+  const sparse_nav::GridPipelineConfig d;
+  char buf[4096];
+  std::snprintf(
+      buf, sizeof(buf),
+      "usage: build_grid FILE --out PREFIX [options]\n"
+      "\n"
+      "Reads a point file (CSV/TXT/XYZ columns, PLY ascii/binary, PCD), finds the floor, and writes\n"
+      "PREFIX.pgm + PREFIX.yaml (map_server format) and PREFIX.png. Defaults are the nodelets'.\n"
+      "\n"
+      "options:\n"
+      "  --up-axis AXIS          nominal up axis of the file: x, -x, y, -y, z, -z (default -y: raw\n"
+      "                          ORB-SLAM worlds are the first camera's optical frame, y down)\n"
+      "  --resolution R          grid and octree cell size in metres (default %g)\n"
+      "  --scale S               metres per SLAM unit (default 1). Monocular ORB-SLAM has no metric\n"
+      "                          scale: without S every metric option below is in SLAM units\n"
+      "  --max-tilt-deg D        largest floor tilt from the up axis (default %g)\n"
+      "  --floor-distance M      RANSAC inlier distance of the floor plane (default %g)\n"
+      "  --floor-planes N        near-horizontal planes tried for the floor (default %d)\n"
+      "  --floor-clearance M     map z below which points are floor (default %g)\n"
+      "  --ceiling-height M      map z above which points are ceiling (default %g)\n"
+      "  --density METHOD        none, radius or ipcl (default radius)\n"
+      "  --density-radius M      density filter radius (default %g)\n"
+      "  --min-neighbors K       density filter neighbour count (default %d)\n"
+      "  --leaf M                voxel leaf size, 0 disables the voxel grid (default %g)\n"
+      "  --alpha M               alpha-shape radius in metres (default %g)\n"
+      "  --auto-alpha            choose alpha from the nearest-neighbour spacing\n"
+      "  --free-space-factor K   octree free space is ray-cast in voxels K times the resolution\n"
+      "                          (1, 2, 4, ...; default %g)\n"
+      "  --max-range M           octree rays longer than M are truncated (default: no limit)\n"
+      "  --no-free-space-filter  keep obstacle points whose voxel the octree has proven free\n"
+      "  --no-octree             skip the OctoMap octree\n"
+      "  --save-octree           also write PREFIX.bt\n"
+      "  --update FILE2          after FILE, process FILE2 (the changed cloud) as an incremental\n"
+      "                          update of the same pipeline; the outputs show the updated grid\n"
+      "  --json                  print {\"n_points\", \"stages_ms\", \"total_ms\", floor, grid} on stdout,\n"
+      "                          with --update also \"update\": {\"stages_ms\", \"total_ms\", ..}\n",
+      d.grid.resolution_m, d.ground.floor.max_tilt_deg, d.ground.floor.distance_threshold_m, d.ground.floor.max_planes,
+      d.ground.floor_clearance_m, d.ground.ceiling_height_m, d.density.radius_m, d.density.min_neighbors,
+      d.voxel.leaf_size_m, d.grid.alpha.alpha_m, d.ground.octree.free_space_resolution_m / d.ground.octree.resolution_m);
+  return buf;
+}
 
 struct Args
 {
   std::string file;
+  std::string update;
   std::string out;
   bool json = false;
   bool save_octree = false;
@@ -77,7 +97,7 @@ double number(const std::string& flag, const std::string& value)
 Args parseArgs(int argc, char** argv)
 {
   Args a;
-  a.config.grid.resolution_m = 0.05;
+  double free_factor = a.config.ground.octree.free_space_resolution_m / a.config.ground.octree.resolution_m;
   for (int i = 1; i < argc; ++i)
   {
     const std::string arg = argv[i];
@@ -90,11 +110,21 @@ Args parseArgs(int argc, char** argv)
     };
     if (arg == "-h" || arg == "--help")
     {
-      std::cout << kUsage;
+      std::cout << usage();
       std::exit(0);
     }
     else if (arg == "--out")
       a.out = value();
+    else if (arg == "--update")
+      a.update = value();
+    else if (arg == "--floor-planes")
+      a.config.ground.floor.max_planes = static_cast<int>(number(arg, value()));
+    else if (arg == "--free-space-factor")
+      free_factor = number(arg, value());
+    else if (arg == "--max-range")
+      a.config.ground.octree.max_range_m = number(arg, value());
+    else if (arg == "--no-free-space-filter")
+      a.config.ground.free_space_filter = false;
     else if (arg == "--json")
       a.json = true;
     else if (arg == "--up-axis")
@@ -102,20 +132,18 @@ Args parseArgs(int argc, char** argv)
     else if (arg == "--resolution")
     {
       a.config.grid.resolution_m = number(arg, value());
-      a.config.octree.resolution_m = a.config.grid.resolution_m;
+      a.config.ground.octree.resolution_m = a.config.grid.resolution_m;
     }
     else if (arg == "--scale")
       a.config.metres_per_unit = number(arg, value());
     else if (arg == "--max-tilt-deg")
-      a.config.floor.max_tilt_deg = number(arg, value());
+      a.config.ground.floor.max_tilt_deg = number(arg, value());
     else if (arg == "--floor-distance")
-      a.config.floor.distance_threshold_m = number(arg, value());
-    else if (arg == "--floor-planes")
-      a.config.floor.max_planes = static_cast<int>(number(arg, value()));
+      a.config.ground.floor.distance_threshold_m = number(arg, value());
     else if (arg == "--floor-clearance")
-      a.config.floor_clearance_m = number(arg, value());
+      a.config.ground.floor_clearance_m = number(arg, value());
     else if (arg == "--ceiling-height")
-      a.config.ceiling_height_m = number(arg, value());
+      a.config.ground.ceiling_height_m = number(arg, value());
     else if (arg == "--density")
       a.config.density.method = sparse_nav::densityMethodFromString(value());
     else if (arg == "--density-radius")
@@ -134,7 +162,7 @@ Args parseArgs(int argc, char** argv)
     else if (arg == "--auto-alpha")
       a.config.grid.alpha.auto_alpha = true;
     else if (arg == "--no-octree")
-      a.config.octree_enabled = false;
+      a.config.ground.octree_enabled = false;
     else if (arg == "--save-octree")
       a.save_octree = true;
     else if (!arg.empty() && arg[0] == '-' && arg.size() > 1)
@@ -152,7 +180,8 @@ Args parseArgs(int argc, char** argv)
   {
     throw std::invalid_argument("--out PREFIX is required");
   }
-  a.config.floor.up_axis = sparse_nav::axisFromString(a.up_axis);
+  a.config.ground.floor.up_axis = sparse_nav::axisFromString(a.up_axis);
+  a.config.ground.octree.free_space_resolution_m = a.config.ground.octree.resolution_m * free_factor;
   a.config.validate();
   return a;
 }
@@ -252,7 +281,7 @@ int main(int argc, char** argv)
   }
   catch (const std::exception& e)
   {
-    std::cerr << "build_grid: " << e.what() << "\n\n" << kUsage;
+    std::cerr << "build_grid: " << e.what() << "\n\n" << usage();
     return 2;
   }
 
@@ -316,13 +345,13 @@ int main(int argc, char** argv)
         std::snprintf(buf, sizeof(buf),
                       "no floor plane within %.0f deg of the up axis %s; the best-supported floor-like plane is "
                       "tilted %.1f deg: pass --max-tilt-deg or --up-axis",
-                      args.config.floor.max_tilt_deg, args.up_axis.c_str(), tilt);
+                      args.config.ground.floor.max_tilt_deg, args.up_axis.c_str(), tilt);
       }
       else
       {
         std::snprintf(buf, sizeof(buf),
                       "no floor plane within %.0f deg of the up axis %s (%s): check --up-axis",
-                      args.config.floor.max_tilt_deg, args.up_axis.c_str(), result.floor.reason.c_str());
+                      args.config.ground.floor.max_tilt_deg, args.up_axis.c_str(), result.floor.reason.c_str());
       }
       message = buf;
     }
@@ -335,6 +364,29 @@ int main(int argc, char** argv)
     }
     return 2;
   }
+
+  // The changed cloud as an incremental update of the same pipeline.
+  sparse_nav::GridPipelineResult update;
+  if (!args.update.empty())
+  {
+    const auto t_read2 = std::chrono::steady_clock::now();
+    const sparse_nav::PointFileResult file2 = sparse_nav::readPointFile(args.update);
+    const double read2_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_read2).count();
+    if (!file2.ok)
+    {
+      std::cerr << "build_grid: --update: " << file2.error << "\n";
+      return 2;
+    }
+    update = pipeline.process(file2.points, sparse_nav::PointList());
+    update.stages_ms["read"] = read2_ms;
+    if (!update.ok)
+    {
+      std::cerr << "build_grid: --update " << args.update << ": " << update.status << "\n";
+      return 2;
+    }
+  }
+  std::map<std::string, double>& last_stages = args.update.empty() ? result.stages_ms : update.stages_ms;
 
   const auto t_write = std::chrono::steady_clock::now();
   const sparse_nav::OccupancyGrid& grid = pipeline.grid();
@@ -367,7 +419,7 @@ int main(int argc, char** argv)
       written = false;
     }
   }
-  result.stages_ms["write"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_write).count();
+  last_stages["write"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_write).count();
   if (!written)
   {
     std::cerr << "build_grid: could not write the outputs " << args.out << ".{pgm,yaml,png}\n";
@@ -382,16 +434,42 @@ int main(int argc, char** argv)
          << ", \"free\": " << grid.count(sparse_nav::OccupancyGrid::kFree)
          << ", \"unknown\": " << grid.count(sparse_nav::OccupancyGrid::kUnknown) << ", \"alpha_m\": " << result.grid.alpha_m
          << ", \"polygons\": " << pipeline.builder().lastShape().rings.size() << "}";
+    json << ", \"octree\": {\"new_voxels\": " << result.octree.n_new_voxels << ", \"rays\": " << result.octree.n_rays
+         << ", \"free_voxels\": " << result.octree.n_free_voxels << ", \"leaves\": "
+         << (pipeline.octree() ? pipeline.octree()->numLeafNodes() : 0) << "}";
+    if (!args.update.empty())
+    {
+      json << ", \"update\": {\"file\": " << jsonString(args.update) << ", \"stages_ms\": {";
+      bool first = true;
+      double total = 0.0;
+      for (const auto& kv : update.stages_ms)
+      {
+        json << (first ? "" : ", ") << jsonString(kv.first) << ": " << kv.second;
+        total += kv.second;
+        first = false;
+      }
+      json << "}, \"total_ms\": " << total << ", \"full_rebuild\": " << (update.grid.full_rebuild ? "true" : "false")
+           << ", \"recomputed_tiles\": " << update.grid.recomputed_tiles.size()
+           << ", \"changed_tiles\": " << update.grid.changed_tiles.size()
+           << ", \"tiles\": " << (grid.width / args.config.grid.tile_size_cells) * (grid.height / args.config.grid.tile_size_cells)
+           << ", \"octree_new_voxels\": " << update.octree.n_new_voxels << ", \"octree_rays\": " << update.octree.n_rays
+           << ", \"obstacles\": " << update.n_obstacles << ", \"freed\": " << update.n_freed << "}";
+    }
     json << ", \"filtered\": {\"guard_out\": " << result.guard.n_out << ", \"density_out\": " << result.density.n_out
          << ", \"voxel_out\": " << result.voxel.n_out << ", \"obstacles\": " << result.n_obstacles
+         << ", \"freed\": " << result.n_freed
          << ", \"floor_band\": " << result.n_floor_band << ", \"ceiling_band\": " << result.n_ceiling_band << "}";
     json << ", \"outputs\": [" << jsonString(pgm) << ", " << jsonString(yaml) << ", " << jsonString(png) << "]}";
     std::cout << json.str() << std::endl;
   }
   else
   {
-    std::cout << "build_grid: " << args.file << ": " << result.status << "\n  wrote " << pgm << ", " << yaml << ", "
-              << png << "\n";
+    std::cout << "build_grid: " << args.file << ": " << result.status << "\n";
+    if (!args.update.empty())
+    {
+      std::cout << "build_grid: --update " << args.update << ": " << update.status << "\n";
+    }
+    std::cout << "  wrote " << pgm << ", " << yaml << ", " << png << "\n";
   }
   return 0;
 }

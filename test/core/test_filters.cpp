@@ -6,6 +6,10 @@
 #include <random>
 #include <stdexcept>
 
+#include <pcl/filters/radius_outlier_removal.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
 #include "sparse_nav/core/cloud_filters.h"
 #include "synthetic.h"
 
@@ -133,6 +137,41 @@ TEST(DensityFilter, RadiusOutlierMatchesIpclOneRound)
   EXPECT_EQ(ror.size(), ipcl.size());
   // Corners of the patch have only 2 neighbours within 6 cm.
   EXPECT_EQ(ror.size(), n_dense - 4);
+}
+
+TEST(DensityFilter, RadiusOutlierKeepsExactlyWhatPclKeeps)
+{
+  // A noisy room plus scattered outliers, filtered at the nodelet's defaults (0.3 m, 5 neighbours).
+  PointList pts = sparse_nav::test::makeRoom(5.0, 4.0, 0.9, 0.25, 0.02, 11);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-2.0f, 7.0f);
+  for (int i = 0; i < 400; ++i)
+  {
+    pts.emplace_back(u(rng), u(rng), u(rng) * 0.4f);
+  }
+  const DensityFilterConfig cfg;
+  ASSERT_EQ(cfg.method, DensityMethod::kRadiusOutlier);
+  const PointList ours = DensityFilter(cfg).apply(pts);
+
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  for (const auto& p : pts)
+  {
+    cloud->points.emplace_back(p.x(), p.y(), p.z());
+  }
+  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
+  cloud->height = 1;
+  pcl::RadiusOutlierRemoval<pcl::PointXYZ> ror;
+  ror.setInputCloud(cloud);
+  ror.setRadiusSearch(cfg.radius_m);
+  ror.setMinNeighborsInRadius(cfg.min_neighbors);
+  pcl::PointCloud<pcl::PointXYZ> kept;
+  ror.filter(kept);
+  ASSERT_EQ(ours.size(), kept.size());
+  EXPECT_LT(ours.size(), pts.size());  // some outliers went
+  for (std::size_t i = 0; i < ours.size(); ++i)
+  {
+    EXPECT_EQ(ours[i], Eigen::Vector3f(kept.points[i].x, kept.points[i].y, kept.points[i].z)) << i;
+  }
 }
 
 TEST(DensityFilter, IpclIsFastOnAHundredThousandPoints)

@@ -65,7 +65,9 @@ TEST(AlphaShape, ClosesASparseWallButKeepsTheDoorwayOpen)
   PointList2D pts;
   std::vector<FreeRay> rays;
   sparseRoom(pts, rays);
-  GridBuilder builder;  // alpha 0.25 m: closes gaps up to 0.5 m
+  GridBuilderConfig cfg;
+  cfg.alpha.alpha_m = 0.25;  // closes gaps up to 0.5 m
+  GridBuilder builder(cfg);
   const GridUpdate u = builder.update(pts, rays);
   ASSERT_TRUE(u.ok) << u.status;
   const OccupancyGrid& g = builder.grid();

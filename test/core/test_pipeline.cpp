@@ -133,7 +133,7 @@ TEST(GridPipeline, TooTiltedFloorIsReportedNotGuessed)
 TEST(GridPipeline, ConfigValidation)
 {
   GridPipelineConfig cfg;
-  cfg.ceiling_height_m = 0.1;
+  cfg.ground.ceiling_height_m = 0.1;
   EXPECT_THROW(GridPipeline{ cfg }, std::invalid_argument);
   cfg = GridPipelineConfig();
   cfg.metres_per_unit = 0;

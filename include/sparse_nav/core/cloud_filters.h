@@ -49,7 +49,7 @@ private:
 enum class DensityMethod
 {
   kNone,            ///< keep every point
-  kRadiusOutlier,   ///< one pass of PCL RadiusOutlierRemoval
+  kRadiusOutlier,   ///< one pass of PCL RadiusOutlierRemoval's rule, counted in a spatial hash (same result)
   kIpcl             ///< seed 000 IPCL: `ipcl_rounds` rounds of the neighbour-count rule
 };
 
@@ -60,8 +60,8 @@ DensityMethod densityMethodFromString(const std::string& name);
 struct DensityFilterConfig
 {
   DensityMethod method = DensityMethod::kRadiusOutlier;
-  double radius_m = 0.1;   ///< neighbourhood radius [m]
-  int min_neighbors = 3;   ///< a point survives iff it has >= min_neighbors other points within radius_m
+  double radius_m = 0.3;   ///< neighbourhood radius [m]; sparse monocular walls need a wide one
+  int min_neighbors = 5;   ///< a point survives iff it has >= min_neighbors other points within radius_m
   int ipcl_rounds = 2;     ///< rounds for kIpcl (removals applied at the end of each round)
 
   /// @brief Throws std::invalid_argument when a value is out of range.
@@ -99,7 +99,7 @@ private:
 /// @brief Configuration of VoxelFilter.
 struct VoxelFilterConfig
 {
-  double leaf_size_m = 0.02;  ///< voxel edge [m]; each occupied voxel becomes its centroid
+  double leaf_size_m = 0.05;  ///< voxel edge [m]; each occupied voxel becomes its centroid
 
   /// @brief Throws std::invalid_argument when a value is out of range.
   void validate() const;

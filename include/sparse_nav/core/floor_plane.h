@@ -21,19 +21,31 @@ struct FloorDetectorConfig
   /// optical frame (y down), hence (0, -1, 0); use (0, 0, 1) for clouds that are already z-up.
   Eigen::Vector3d up_axis = Eigen::Vector3d(0.0, -1.0, 0.0);
   double max_tilt_deg = 15.0;          ///< largest angle between the floor normal and up_axis [deg]
-  double distance_threshold_m = 0.03;  ///< RANSAC inlier distance [m]
+  double distance_threshold_m = 0.1;   ///< inlier distance of the floor plane [m]; monocular floors are noisy
   int max_iterations = 500;            ///< RANSAC iterations per plane
-  std::size_t min_inliers = 30;        ///< a candidate plane needs at least this many inliers
-  double min_inlier_fraction = 0.02;   ///< ... and at least this fraction of the (fitted) points
+  /// Candidate planes extracted before choosing; sparse floors come after slices through dense walls.
+  int max_planes = 12;
   /// A candidate counts as well supported when it has at least this fraction of the inliers of the
   /// best-supported candidate; the lowest well-supported candidate along up_axis is the floor.
   double min_relative_support = 0.1;
+  std::size_t min_inliers = 30;        ///< a floor needs at least this many inliers
+  double min_inlier_fraction = 0.02;   ///< ... and at least this fraction of the (fitted) points
+  /// The floor's lower side is the quantile of the heights along a candidate normal that leaves
+  /// this fraction of the points under it (outliers below the floor).
+  double low_quantile = 0.01;
+  /// A floor has many more points on it than just under it: inliers >= this times the points in
+  /// the slab of twice distance_threshold_m beneath. Tells a floor from the bottom of a random cloud.
+  double min_contrast = 3.0;
   /// A floor has (almost) nothing under it: a candidate with more than this fraction of the points
-  /// further than below_margin_m beneath it is rejected (a plane cutting through walls, a table top).
+  /// further than below_margin_m beneath it is rejected.
   double max_below_fraction = 0.1;
   double below_margin_m = 0.1;  ///< [m]
-  int max_planes = 4;                  ///< candidate planes extracted before choosing
-  std::size_t max_fit_points = 30000;  ///< larger clouds are subsampled (fixed stride) for RANSAC
+  double tilt_step_deg = 0.5;          ///< finest step of the normal search [deg]
+  double wall_radius_m = 0.3;          ///< neighbourhood of the wall-normal estimate [m]
+  /// A fitted floor whose normal is further than this from the walls' up is taken for a slab of
+  /// wall bottoms; the floor is then perpendicular to the walls at their lower envelope [deg].
+  double max_wall_disagreement_deg = 1.0;
+  std::size_t max_fit_points = 10000;  ///< larger clouds are subsampled (fixed stride)
 
   /// @brief Throws std::invalid_argument when a value is out of range.
   void validate() const;
@@ -64,16 +76,20 @@ struct FloorResult
 };
 
 /**
- * @brief Finds the floor: the lowest well-supported plane whose normal is within max_tilt_deg of
- * the nominal up axis, by PCL sample consensus (SACMODEL_PERPENDICULAR_PLANE, RANSAC).
+ * @brief Finds the floor: the lower envelope of the cloud along the normal, within max_tilt_deg of
+ * the nominal up axis, that holds the most points.
  *
- * Planes are extracted one after another (inliers removed each time); the least-squares refit of a
- * plane may leave the RANSAC cone by up to 0.5 deg and is still accepted. Walls are excluded by the
- * tilt limit, planes with many points beneath them (ceilings, table tops, slabs cutting through
- * walls) are rejected, and the lowest well-supported remaining candidate is the floor. When the
- * best-supported floor-like plane within 45 deg is tilted beyond max_tilt_deg and has more support
- * than every candidate, the result is "no floor" (the floor is tilted too much) rather than a guess. The RANSAC
- * seed is PCL's fixed one, so results are deterministic.
+ * Monocular SLAM sees little of the floor (1-5 % of the points in the simulator's worlds), and the
+ * point density grows from the floor up the walls, so the floor is no peak of any height histogram
+ * and sample consensus prefers slanted planes through the wall bottoms. The floor is where the
+ * points start: for each candidate normal (a coarse-to-fine search over the cone), the slab of
+ * 2 * distance_threshold_m above the low_quantile of the heights is counted, and the normal whose
+ * slab holds the most points wins (a wrong normal touches the floor only along one edge). The
+ * plane is then refitted by least squares to the points within distance_threshold_m, twice, with
+ * the second pass at half the distance. A floor needs min_inliers, min_inlier_fraction, contrast
+ * against the slab beneath it and few points below it. When the best lower envelope within 45 deg
+ * is tilted beyond max_tilt_deg and holds more points than every one within the limit, the result
+ * is "no floor" (the floor is tilted too much) rather than a guess. Deterministic.
  */
 class FloorDetector
 {
@@ -84,6 +100,9 @@ public:
   const FloorDetectorConfig& config() const { return config_; }
 
 private:
+  FloorResult detectByConsensus(const PointList& points) const;
+  FloorResult detectByEnvelope(const PointList& points) const;
+
   FloorDetectorConfig config_;
 };
 

@@ -11,6 +11,7 @@
 #include "sparse_nav/core/cloud_filters.h"
 #include "sparse_nav/core/floor_plane.h"
 #include "sparse_nav/core/grid_builder.h"
+#include "sparse_nav/core/ground_mapper.h"
 #include "sparse_nav/core/octree_map.h"
 #include "sparse_nav/core/types.h"
 
@@ -26,13 +27,9 @@ struct GridPipelineConfig
   DensityFilterConfig density;
   bool voxel_enabled = true;
   VoxelFilterConfig voxel;
-  FloorDetectorConfig floor;
-  /// Keep the first floor found for later updates (a moving floor would shift the whole map).
-  bool keep_floor = true;
-  bool octree_enabled = true;
-  OctreeMapConfig octree;
-  double floor_clearance_m = 0.15;  ///< map z below which points are floor, not obstacles [m]
-  double ceiling_height_m = 2.2;    ///< map z above which points are ceiling, not obstacles [m]
+  /// Floor, alignment, octree, bands and free-space filter. keep_floor and align_to_floor are true
+  /// here: the first floor found defines the map frame (a moving floor would shift the whole map).
+  GroundMapperConfig ground;
   GridBuilderConfig grid;
 
   /// @brief Validates this and every nested Config; throws std::invalid_argument.
@@ -53,6 +50,7 @@ struct GridPipelineResult
   OctreeInsertStats octree;
   std::size_t n_floor_band = 0;    ///< points removed as floor (z < floor_clearance_m)
   std::size_t n_ceiling_band = 0;  ///< points removed as ceiling (z > ceiling_height_m)
+  std::size_t n_freed = 0;         ///< band points removed because the octree proved their voxel free
   std::size_t n_obstacles = 0;
   GridUpdate grid;
   std::map<std::string, double> stages_ms;  ///< wall time per stage [ms]
@@ -61,9 +59,13 @@ struct GridPipelineResult
 
 /**
  * @brief The perception chain from SLAM map points to an occupancy grid: guard, scale, density
- * filter, voxel grid, floor plane, alignment to the z-up map frame, octree with free space
- * ray-cast from the camera, floor/ceiling band removal, alpha shapes and rasterisation, with
- * dirty-tile incremental updates. Never throws on bad data; problems are reported in the result.
+ * filter, voxel grid, then GroundMapper (floor plane, alignment to the z-up map frame, octree with
+ * free space ray-cast from the cameras, floor/ceiling band removal, free-space filter), then
+ * GridBuilder (alpha shapes and rasterisation, with dirty-tile incremental updates). The nodelets
+ * cloud_filter, ground_mapper and grid_builder run the same three stages. Calling process() again
+ * with a changed cloud is an incremental update: the octree casts rays only for new points and the
+ * grid recomputes only the tiles whose obstacles or rays changed. Never throws on bad data;
+ * problems are reported in the result.
  */
 class GridPipeline
 {
@@ -84,9 +86,10 @@ public:
   const OccupancyGrid& grid() const { return builder_.grid(); }
   const GridBuilder& builder() const { return builder_; }
   /// @brief The octree, or nullptr when octree_enabled is false.
-  OctreeMap* octree() { return octree_.get(); }
-  bool hasFloor() const { return has_floor_; }
-  const FloorPlane& floor() const { return floor_; }
+  OctreeMap* octree() { return ground_.octree(); }
+  const GroundMapper& ground() const { return ground_; }
+  bool hasFloor() const { return ground_.hasFloor(); }
+  const FloorPlane& floor() const { return ground_.floor().plane; }
   const GridPipelineConfig& config() const { return config_; }
 
 private:
@@ -94,11 +97,8 @@ private:
   PointGuard guard_;
   DensityFilter density_;
   VoxelFilter voxel_;
-  FloorDetector floor_detector_;
-  std::unique_ptr<OctreeMap> octree_;
+  GroundMapper ground_;
   GridBuilder builder_;
-  bool has_floor_ = false;
-  FloorPlane floor_;
 };
 
 }  // namespace sparse_nav

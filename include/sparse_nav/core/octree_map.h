@@ -2,8 +2,11 @@
 #define SPARSE_NAV_CORE_OCTREE_MAP_H
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
+#include <unordered_set>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -21,6 +24,10 @@ struct OctreeMapConfig
 {
   double resolution_m = 0.05;  ///< smallest voxel edge [m]
   double max_range_m = -1.0;   ///< rays longer than this are truncated (endpoint not marked); < 0: no limit
+  /// Free space is ray-cast in voxels of this edge [m]: resolution_m times a power of two (the
+  /// octree stores them as coarse leaves). Equal to resolution_m casts at full resolution; 4x
+  /// visits 4x fewer voxels per ray and 64x fewer voxels per volume.
+  double free_space_resolution_m = 0.2;
   double prob_hit = 0.7;       ///< OctoMap hit probability
   double prob_miss = 0.4;      ///< OctoMap miss probability (free space along rays)
 
@@ -31,7 +38,10 @@ struct OctreeMapConfig
 /// @brief What an insertion did.
 struct OctreeInsertStats
 {
-  std::size_t n_inserted = 0;      ///< points inserted as occupied endpoints
+  std::size_t n_inserted = 0;      ///< points inserted as occupied endpoints (new or already known)
+  std::size_t n_new_voxels = 0;    ///< endpoint voxels seen for the first time: only these cast rays
+  std::size_t n_rays = 0;          ///< rays cast (one per new endpoint free-space voxel and camera)
+  std::size_t n_free_voxels = 0;   ///< free-space voxels updated
   std::size_t n_out_of_range = 0;  ///< dropped: non-finite or outside the octree's key range
   bool origin_ok = true;           ///< false when the sensor origin was outside the key range (nothing inserted)
 };
@@ -53,7 +63,13 @@ enum class VoxelState
 
 /**
  * @brief OctoMap occupancy octree in the map frame (z up, metres), with free space ray-cast from
- * the camera position.
+ * the camera positions.
+ *
+ * Insertion is incremental: the tree remembers which endpoint voxels it has seen, and only points
+ * in voxels it has not seen yet cast rays, so re-inserting a map whose points mostly stayed put
+ * costs little. Rays are cast in free_space_resolution_m voxels, one ray per coarse endpoint voxel
+ * and camera, and a coarse voxel holding any endpoint of the insertion is never marked free by it
+ * (OctoMap's "occupied wins" rule at that resolution). Endpoints are hits at full resolution.
  *
  * The octree's 16-bit keys cover +-32768 voxels around the origin (+-1638.4 m at 5 cm); points
  * outside that range, and non-finite points, are dropped and counted instead of reaching OctoMap.
@@ -72,6 +88,15 @@ public:
   /// @param points endpoints in the map frame [m]
   /// @param sensor_origin camera position in the map frame [m]
   OctreeInsertStats insert(const PointList& points, const Eigen::Vector3d& sensor_origin);
+
+  /**
+   * @brief Inserts points whose rays start at several camera positions.
+   * @param points endpoints in the map frame [m]
+   * @param origins camera positions in the map frame [m]
+   * @param origin_of_point index into origins for each point (same size as points)
+   */
+  OctreeInsertStats insert(const PointList& points, const std::vector<Eigen::Vector3d>& origins,
+                           const std::vector<std::size_t>& origin_of_point);
 
   /// @brief State of the voxel containing position (map frame, m).
   VoxelState query(const Eigen::Vector3d& position) const;
@@ -100,9 +125,12 @@ public:
 
 private:
   bool inRange(const Eigen::Vector3d& p) const;
+  void resetTree();
 
   OctreeMapConfig config_;
   std::unique_ptr<octomap::OcTree> tree_;
+  unsigned free_levels_ = 0;  // free_space_resolution_m = resolution_m * 2^free_levels_
+  std::unordered_set<std::uint64_t> inserted_;  // packed keys of the endpoint voxels inserted so far
 };
 
 }  // namespace sparse_nav

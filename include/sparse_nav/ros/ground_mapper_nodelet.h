@@ -13,14 +13,14 @@
 #include <tf2_ros/transform_listener.h>
 
 #include "sparse_nav/MapFile.h"
-#include "sparse_nav/core/floor_plane.h"
-#include "sparse_nav/core/octree_map.h"
+#include "sparse_nav/core/ground_mapper.h"
 
 namespace sparse_nav
 {
 /**
- * @brief ground_mapper: floor plane, OctoMap octree with free space ray-cast from the camera, and
- * the obstacle cloud between the floor band and the ceiling band.
+ * @brief ground_mapper: a shell around the core GroundMapper (floor plane, OctoMap octree with
+ * free space ray-cast from the camera, the obstacle cloud between the floor band and the ceiling
+ * band, less the points in proven free space), the same object build_grid runs.
  *
  * Subscribes `cloud/filtered` (map frame, metres) and TF map -> camera; publishes
  * `cloud/obstacles` and `cloud/floor` (map frame), `floor_plane` (sparse_nav/FloorEstimate),
@@ -43,18 +43,12 @@ private:
   void diagnose(bool ok, const std::string& message);
   std::string mapPath(const std::string& name) const;
 
-  FloorDetectorConfig floor_config_;
-  OctreeMapConfig octree_config_;
-  double floor_clearance_m_ = 0.15;
-  double ceiling_height_m_ = 2.2;
   std::string map_frame_ = "map";
   std::string camera_frame_ = "camera_optical";
   std::string map_dir_;
   double markers_period_s_ = 1.0;
 
-  std::unique_ptr<OctreeMap> octree_;
-  FloorResult floor_;
-  bool has_floor_ = false;
+  std::unique_ptr<GroundMapper> mapper_;
   Eigen::Vector3d last_camera_ = Eigen::Vector3d::Zero();
   bool has_camera_ = false;
   ros::Time last_markers_;

@@ -1,0 +1,103 @@
+#ifndef SPARSE_NAV_CORE_GROUND_MAPPER_H
+#define SPARSE_NAV_CORE_GROUND_MAPPER_H
+
+#include <cstddef>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "sparse_nav/core/floor_plane.h"
+#include "sparse_nav/core/grid_builder.h"
+#include "sparse_nav/core/octree_map.h"
+#include "sparse_nav/core/types.h"
+
+namespace sparse_nav
+{
+/// @brief Configuration of GroundMapper. Metric values in metres, heights along the floor normal.
+struct GroundMapperConfig
+{
+  FloorDetectorConfig floor;
+  /// true: detect the floor until one is found, then keep it. false: detect it in every cloud and
+  /// keep the last one found when a cloud shows none.
+  bool keep_floor = true;
+  /// true: the output frame is alignToFloor(floor) (z up, floor at z = 0), for SLAM-frame input.
+  /// false: the output frame is the input frame (input already in the z-up map frame).
+  bool align_to_floor = true;
+  double floor_clearance_m = 0.15;  ///< points lower than this above the floor are floor [m]
+  double ceiling_height_m = 2.2;    ///< points higher than this above the floor are ceiling [m]
+  bool octree_enabled = true;
+  OctreeMapConfig octree;
+  /// Drop obstacle points whose octree voxel the camera rays have proven free (stray points
+  /// smeared into doorways by monocular depth noise). Needs the octree.
+  bool free_space_filter = true;
+
+  /// @brief Throws std::invalid_argument when a value is out of range.
+  void validate() const;
+};
+
+/// @brief Outcome of GroundMapper::process; every point set is in the output frame.
+struct GroundMapperResult
+{
+  bool ok = false;
+  std::string status;  ///< summary, or what went wrong when !ok
+  FloorResult floor;   ///< the floor in use (found = false only when there is none yet)
+  bool floor_changed = false;  ///< the output frame moved (a new floor with align_to_floor): start over
+  std::string floor_warning;   ///< why this cloud showed no floor when the last one found is kept
+  Eigen::Isometry3d to_output = Eigen::Isometry3d::Identity();  ///< input frame -> output frame
+  std::vector<Eigen::Vector3d> cameras;  ///< camera positions used, output frame [m]
+  PointList obstacles;     ///< points between the floor band and the ceiling band, not proven free
+  PointList floor_points;  ///< points within floor_clearance_m of the floor plane
+  std::vector<FreeRay> rays;  ///< per point, the part of its ray from the nearest camera inside the band (x-y)
+  std::size_t n_floor_band = 0;    ///< points below floor_clearance_m
+  std::size_t n_ceiling_band = 0;  ///< points above ceiling_height_m
+  std::size_t n_freed = 0;         ///< band points dropped because their voxel is free
+  OctreeInsertStats octree;
+  std::map<std::string, double> stages_ms;  ///< "floor", "align", "octree", "slice" [ms]
+};
+
+/**
+ * @brief The ground stage of the perception chain: floor plane, alignment, OctoMap octree with
+ * free space ray-cast from the cameras, floor and ceiling bands measured from the floor plane,
+ * the free-space filter of obstacle points, and the free rays inside the band.
+ *
+ * build_grid (through GridPipeline) and the ground_mapper nodelet both run this object, so the
+ * same cloud gives the same obstacles. The octree is kept across calls; only points in voxels it
+ * has not seen cast rays (OctreeMap::insert), so an update where few points changed is cheap.
+ */
+class GroundMapper
+{
+public:
+  explicit GroundMapper(const GroundMapperConfig& config = GroundMapperConfig());
+  ~GroundMapper();
+
+  /**
+   * @param points filtered cloud in the input frame [m]
+   * @param cameras camera positions in the input frame [m]; rays start at the nearest one. Empty:
+   *        the input frame's origin (the first ORB-SLAM camera).
+   */
+  GroundMapperResult process(const PointList& points, const std::vector<Eigen::Vector3d>& cameras);
+
+  /// @brief Forgets the floor and the octree.
+  void reset();
+
+  bool hasFloor() const { return has_floor_; }
+  const FloorResult& floor() const { return floor_; }
+  /// @brief The octree, or nullptr when octree_enabled is false.
+  OctreeMap* octree() { return octree_.get(); }
+  const OctreeMap* octree() const { return octree_.get(); }
+  const GroundMapperConfig& config() const { return config_; }
+
+private:
+  GroundMapperConfig config_;
+  FloorDetector detector_;
+  std::unique_ptr<OctreeMap> octree_;
+  bool has_floor_ = false;
+  FloorResult floor_;
+};
+
+}  // namespace sparse_nav
+
+#endif  // SPARSE_NAV_CORE_GROUND_MAPPER_H

@@ -1,0 +1,150 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "sparse_nav/core/grid_pipeline.h"
+#include "sparse_nav/core/ground_mapper.h"
+#include "synthetic.h"
+
+using sparse_nav::GridPipeline;
+using sparse_nav::GridPipelineConfig;
+using sparse_nav::GridPipelineResult;
+using sparse_nav::GroundMapper;
+using sparse_nav::GroundMapperConfig;
+using sparse_nav::GroundMapperResult;
+using sparse_nav::PointList;
+
+namespace
+{
+/// The synthetic room (z-up, floor at z = 0) in a y-down SLAM frame whose origin is the first
+/// camera, 1.1 m above the floor at the room centre.
+PointList slamRoom(const PointList& room)
+{
+  const Eigen::Isometry3d shift(Eigen::Translation3d(-2.5, -2.0, -1.1));
+  return sparse_nav::transformPoints(room, sparse_nav::test::zUpToYDown() * shift);
+}
+
+GroundMapperConfig mapFrameConfig()
+{
+  GroundMapperConfig cfg;
+  cfg.floor.up_axis = Eigen::Vector3d::UnitZ();
+  cfg.align_to_floor = false;  // as the ground_mapper nodelet: the input is the z-up map frame
+  cfg.keep_floor = false;
+  return cfg;
+}
+}  // namespace
+
+TEST(GroundMapper, BandsAreMeasuredFromTheFloorAndRaysStayInTheBand)
+{
+  GroundMapper mapper(mapFrameConfig());
+  const PointList room = sparse_nav::test::makeRoom();
+  const GroundMapperResult r = mapper.process(room, { Eigen::Vector3d(2.5, 2.0, 1.2) });
+  ASSERT_TRUE(r.ok) << r.status;
+  EXPECT_NEAR(r.floor.plane.tilt_deg, 0.0, 0.5);
+  EXPECT_NEAR(r.floor.plane.height(), 0.0, 0.03);
+  EXPECT_TRUE(r.to_output.isApprox(Eigen::Isometry3d::Identity()));
+  EXPECT_GT(r.n_floor_band, 0u);
+  EXPECT_FALSE(r.floor_points.empty());
+  EXPECT_EQ(r.obstacles.size() + r.n_freed + r.n_floor_band + r.n_ceiling_band, room.size());
+  for (const auto& p : r.obstacles)
+  {
+    EXPECT_GE(p.z(), 0.15 - 0.03);
+    EXPECT_LE(p.z(), 2.2 + 0.03);
+  }
+  // A floor point's ray ends where it leaves the band (0.15 m up), short of the point itself.
+  EXPECT_EQ(r.rays.size(), room.size());
+  ASSERT_NE(mapper.octree(), nullptr);
+  EXPECT_GT(r.octree.n_new_voxels, 0u);
+  EXPECT_GT(r.octree.n_rays, 0u);
+}
+
+TEST(GroundMapper, FreeSpaceFilterDropsAStrayPointInSpaceTheRaysCrossed)
+{
+  GroundMapper mapper(mapFrameConfig());
+  const Eigen::Vector3d camera(2.5, 2.0, 1.2);
+  // The SLAM map grows over three updates (new wall points each time); every update's new rays
+  // cross the room's interior.
+  for (double offset : { 0.0, 0.03, 0.06 })
+  {
+    PointList room = sparse_nav::test::makeRoom(5.0, 4.0, 0.9, 0.1, 0.005, static_cast<unsigned>(7 + offset * 100));
+    for (auto& p : room)
+    {
+      if (p.z() > 0.2f)
+      {
+        p.z() += static_cast<float>(offset);
+      }
+    }
+    const GroundMapperResult r = mapper.process(room, { camera });
+    ASSERT_TRUE(r.ok) << r.status;
+    EXPECT_EQ(r.n_freed, 0u);  // walls are never freed by rays that end on them
+  }
+  // Then a point appears in the middle of the room (monocular smear into open space).
+  PointList room = sparse_nav::test::makeRoom();
+  const std::size_t n_room = room.size();
+  room.emplace_back(1.5f, 1.0f, 1.1f);
+  const GroundMapperResult r = mapper.process(room, { camera });
+  ASSERT_TRUE(r.ok) << r.status;
+  EXPECT_EQ(r.n_freed, 1u);
+  for (const auto& p : r.obstacles)
+  {
+    EXPECT_FALSE(std::abs(p.x() - 1.5f) < 0.01f && std::abs(p.y() - 1.0f) < 0.01f) << "the stray point was kept";
+  }
+  EXPECT_GT(r.obstacles.size(), n_room / 2);
+
+  // Without the filter the same point stays.
+  GroundMapperConfig cfg = mapFrameConfig();
+  cfg.free_space_filter = false;
+  GroundMapper unfiltered(cfg);
+  EXPECT_EQ(unfiltered.process(room, { camera }).n_freed, 0u);
+}
+
+TEST(GridPipeline, IncrementalUpdateEqualsAFullRebuildOnTheSamePoints)
+{
+  const PointList before = slamRoom(sparse_nav::test::makeRoom());
+  // 1% of the points, on one wall above the floor band, move by 3 cm (a local bundle adjustment).
+  PointList after = before;
+  std::mt19937 rng(3);
+  std::normal_distribution<float> noise(0.0f, 0.03f);
+  std::size_t moved = 0;
+  for (auto& p : after)
+  {
+    // SLAM frame: x right, y down, z forward; the east wall is at x = +2.5, heights above 0.5 m.
+    if (moved < before.size() / 100 && p.x() > 2.4f && p.y() < -0.5f + 1.1f - 1.0f)
+    {
+      p += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+      ++moved;
+    }
+  }
+  ASSERT_GT(moved, 10u);
+
+  GridPipeline incremental;
+  const GridPipelineResult first = incremental.process(before, {});
+  ASSERT_TRUE(first.ok) << first.status;
+  const GridPipelineResult update = incremental.process(after, {});
+  ASSERT_TRUE(update.ok) << update.status;
+  EXPECT_FALSE(update.grid.full_rebuild);
+  EXPECT_LT(update.grid.recomputed_tiles.size(), first.grid.recomputed_tiles.size());
+  // Only the moved points' voxels cast rays again.
+  EXPECT_LE(update.octree.n_new_voxels, moved);
+  EXPECT_GT(first.octree.n_new_voxels, 10 * update.octree.n_new_voxels);
+
+  GridPipeline full;
+  const GridPipelineResult rebuilt = full.process(after, {});
+  ASSERT_TRUE(rebuilt.ok) << rebuilt.status;
+  EXPECT_TRUE(rebuilt.grid.full_rebuild);
+  EXPECT_EQ(update.n_obstacles, rebuilt.n_obstacles);
+  const auto& a = incremental.grid();
+  const auto& b = full.grid();
+  ASSERT_EQ(a.width, b.width);
+  ASSERT_EQ(a.height, b.height);
+  EXPECT_DOUBLE_EQ(a.origin_x_m, b.origin_x_m);
+  EXPECT_DOUBLE_EQ(a.origin_y_m, b.origin_y_m);
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < a.data.size(); ++i)
+  {
+    differ += a.data[i] != b.data[i] ? 1 : 0;
+  }
+  EXPECT_EQ(differ, 0u);
+}

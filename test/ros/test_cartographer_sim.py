@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""rostest: fragments of the simulator's SLAM maps across a forced loss, reloaded by a restart."""
+"""rostest: fragments of the simulator's SLAM maps across a forced loss, reloaded by a restart
+that refuses a corrupt file and keeps serving."""
 import os
 import shutil
 import sys
@@ -13,7 +14,7 @@ import roslaunch
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from motion_harness import MotionHarness  # noqa: E402
-from sparse_nav.cartographer import FragmentStore  # noqa: E402
+from sparse_nav.cartographer import FragmentStore, encode  # noqa: E402
 from sparse_nav.msg import SlamState  # noqa: E402
 from sparse_nav.srv import ListFragments  # noqa: E402
 
@@ -65,7 +66,10 @@ class CartographerSimTest(unittest.TestCase):
         if len(indices) > 1 and final_index != 0:
             self.assertGreaterEqual(len(names), 2, "a new SLAM map gets its own fragment")
 
-        # A second cartographer, started now, reloads every fragment and starts session 2.
+        # A second cartographer, started now with a corrupt file beside the fragments, reloads
+        # every good fragment, refuses the corrupt one with its reason, and keeps serving.
+        with open(os.path.join(self.map_dir, "broken.frag"), "wb") as f:
+            f.write(encode(points)[:-5])
         launch = roslaunch.scriptapi.ROSLaunch()
         launch.start()
         node = roslaunch.core.Node("sparse_nav", "cartographer", name="cartographer_restarted",
@@ -75,8 +79,10 @@ class CartographerSimTest(unittest.TestCase):
         try:
             rospy.wait_for_service("/cartographer_restarted/list", timeout=120.0)
             listing = rospy.ServiceProxy("/cartographer_restarted/list", ListFragments)()
-            self.assertEqual(sorted(listing.names), names)
-            self.assertEqual([e for e in listing.errors if e], [])
+            errors = dict(zip(listing.names, listing.errors))
+            self.assertEqual(sorted(listing.names), sorted(names + ["broken"]))
+            self.assertIn("truncated", errors.pop("broken"))
+            self.assertEqual([e for e in errors.values() if e], [])
         finally:
             process.stop()
             launch.stop()

@@ -26,7 +26,7 @@ DEBS := catkin ros-base-dev python3-rospy python3-rostest librostest-dev python3
   python3-diagnostic-msgs python3-diagnostic-updater python3-actionlib python3-move-base-msgs libtf2-ros-dev python3-tf2-ros tf2-tools \
   rviz xvfb x11-utils x11-apps netpbm python3-rospkg python3-numpy python3-scipy python3-yaml python3-matplotlib python3-opencv \
   python3-pytest python3-hypothesis cmake g++ make libnodeletlib-dev libnodeletlib-tools pluginlib-dev \
-  libpcl-dev liboctomap-dev libcgal-dev libopencv-dev libeigen3-dev googletest libgtest-dev pybind11-dev python3-dev python3-shapely python3-rtree python3-sklearn
+  libpcl-dev liboctomap-dev libcgal-dev libopencv-dev libeigen3-dev googletest libgtest-dev pybind11-dev python3-dev python3-shapely python3-rtree python3-sklearn zlib1g-dev
 
 .PHONY: setup build test demo bench clean
 

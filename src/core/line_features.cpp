@@ -67,9 +67,9 @@ LineFit fitRanges(const PointList2D& points, const std::vector<Range>& ranges)
 }
 
 /// A wall from a fit and the ranges it was fitted to; direction follows the point order.
-Wall makeWall(const PointList2D& points, const LineFit& fit, const std::vector<Range>& ranges)
+ScanWall makeWall(const PointList2D& points, const LineFit& fit, const std::vector<Range>& ranges)
 {
-  Wall w;
+  ScanWall w;
   w.first_index = ranges.front().first;
   w.last_index = ranges.back().second - 1;
   w.start = fit.project(points[w.first_index]);
@@ -429,8 +429,8 @@ ScanFeatures LineFeatureExtractor::extract(const RangeScan& scan) const
   // Appends b's ranges to a's when the two are close, parallel, and one line fits both.
   auto tryMerge = [&](std::vector<Range>& a_ranges, LineFit& a_fit, const std::vector<Range>& b_ranges,
                       const LineFit& b_fit) {
-    const Wall a = makeWall(f.points, a_fit, a_ranges);
-    const Wall b = makeWall(f.points, b_fit, b_ranges);
+    const ScanWall a = makeWall(f.points, a_fit, a_ranges);
+    const ScanWall b = makeWall(f.points, b_fit, b_ranges);
     if ((b.start - a.end).norm() > config_.merge_gap_m || a.direction().dot(b.direction()) < merge_cos)
       return false;
     std::vector<Range> joined = a_ranges;
@@ -465,58 +465,89 @@ ScanFeatures LineFeatureExtractor::extract(const RangeScan& scan) const
   }
   for (std::size_t s = 0; s < segments.size(); ++s)
   {
-    Wall w = makeWall(f.points, fits[s], segments[s]);
+    ScanWall w = makeWall(f.points, fits[s], segments[s]);
     if (w.length() >= config_.min_wall_length_m && w.length() > 0.0)
       f.walls.push_back(w);
   }
-  findDoors(f, full);
-  findCorners(f, full);
+  findDoors(f, full, inc);
+  std::vector<std::uint32_t> group_of(f.points.size(), 0);
+  for (std::size_t g = 0; g < groups.size(); ++g)
+    for (std::size_t k = groups[g].first; k < groups[g].second; ++k)
+      group_of[k] = static_cast<std::uint32_t>(g);
+  findCorners(f, full, group_of);
   findCorridors(f);
   f.ok = true;
   return f;
 }
 
-void LineFeatureExtractor::findDoors(ScanFeatures& f, bool full_circle) const
+void LineFeatureExtractor::findDoors(ScanFeatures& f, bool full_circle, double increment_rad) const
 {
   const std::size_t nw = f.walls.size();
   const std::size_t np = f.points.size();
   const double cos_max = std::cos(config_.door_max_angle_deg * kDegToRad);
+  const double sin_max = std::sin(config_.door_max_angle_deg * kDegToRad);
+  // A wall's last return falls short of its true end by up to one beam: the end lies between that
+  // return and where the next beam crosses the wall's line. The midpoint is the jamb; the two
+  // bounds give the door's narrowest and widest possible width.
+  struct Jamb
+  {
+    Eigen::Vector2d seen, beyond, mid;
+  };
+  auto jamb = [](const ScanWall& w, const Eigen::Vector2d& last, double dphi) {
+    const double ang = std::atan2(last.y(), last.x()) + dphi;
+    const Eigen::Vector2d ray(std::cos(ang), std::sin(ang));
+    Eigen::Vector2d x;
+    if (!intersect(Eigen::Vector2d::Zero(), ray, w.start, w.direction(), x) || x.dot(ray) <= 0.0 ||
+        (x - last).norm() > 0.5)
+      x = last;
+    return Jamb{ last, x, 0.5 * (last + x) };
+  };
   std::vector<std::uint8_t> used_after(nw, 0);
   for (std::size_t i = 0; i < nw; ++i)
   {
-    const Wall& a = f.walls[i];
+    const ScanWall& a = f.walls[i];
     const Eigen::Vector2d da = a.direction();
     const Eigen::Vector2d na(-da.y(), da.x());
+    const Jamb jamb_a = jamb(a, a.end, increment_rad);
+    const Eigen::Vector2d ja = jamb_a.mid;
     // Walls after wall i in scan order (past the seam of a full turn too); the gap's far side may
     // show other walls in between.
     const std::size_t max_k = full_circle ? nw - 1 : nw - 1 - i;
     for (std::size_t k = 1; k <= max_k; ++k)
     {
       const std::size_t j = (i + k) % nw;
-      const Wall& b = f.walls[j];
+      const ScanWall& b = f.walls[j];
       if (used_after[j])
         continue;
-      const double width = (b.start - a.end).norm();
-      if (width < config_.door_min_width_m || width > config_.door_max_width_m)
+      const Jamb jamb_b = jamb(b, b.start, -increment_rad);
+      const Eigen::Vector2d jb = jamb_b.mid;
+      const Eigen::Vector2d gap = jb - ja;
+      const double width = gap.norm();
+      const double widest = (jamb_b.seen - jamb_a.seen).norm();
+      const double narrowest = (jamb_b.beyond - jamb_a.beyond).norm();
+      if (std::max(widest, width) < config_.door_min_width_m || std::min(narrowest, width) > config_.door_max_width_m)
         continue;
       const Eigen::Vector2d db = b.direction();
-      if (da.dot(db) < cos_max || (b.start - a.end).dot(da) < 0.5 * width)
-        continue;
       const Eigen::Vector2d nb(-db.y(), db.x());
-      if (std::abs(na.dot(b.start - a.start)) > config_.door_max_offset_m ||
-          std::abs(nb.dot(a.end - b.start)) > config_.door_max_offset_m)
+      // A gap in one wall line, or the far end of a recess whose two side walls face each other.
+      const bool in_line = da.dot(db) >= cos_max && gap.dot(da) >= 0.5 * width &&
+                           std::abs(na.dot(b.start - a.start)) <= config_.door_max_offset_m &&
+                           std::abs(nb.dot(a.end - b.start)) <= config_.door_max_offset_m;
+      const bool recess = da.dot(db) <= -cos_max && std::abs(gap.dot(da)) <= sin_max * width &&
+                          std::abs(gap.dot(db)) <= sin_max * width;
+      if (!in_line && !recess)
         continue;
       bool open = true;
       for (std::size_t q = (a.last_index + 1) % np; q != b.first_index && open; q = (q + 1) % np)
       {
-        const double t = rayToSegment(f.points[q], a.end, b.start);
+        const double t = rayToSegment(f.points[q], ja, jb);
         open = t < 0.0 || f.points[q].norm() >= t - config_.door_clearance_m;
       }
       if (!open)
         continue;
-      Door door;
-      door.start = a.end;
-      door.end = b.start;
+      ScanDoor door;
+      door.start = ja;
+      door.end = jb;
       door.wall_before = i;
       door.wall_after = j;
       f.doors.push_back(door);
@@ -526,7 +557,8 @@ void LineFeatureExtractor::findDoors(ScanFeatures& f, bool full_circle) const
   }
 }
 
-void LineFeatureExtractor::findCorners(ScanFeatures& f, bool full_circle) const
+void LineFeatureExtractor::findCorners(ScanFeatures& f, bool full_circle,
+                                       const std::vector<std::uint32_t>& group_of) const
 {
   const std::size_t nw = f.walls.size();
   if (nw < 2)
@@ -536,8 +568,8 @@ void LineFeatureExtractor::findCorners(ScanFeatures& f, bool full_circle) const
   for (std::size_t i = 0; i < pairs; ++i)
   {
     const std::size_t j = (i + 1) % nw;
-    const Wall& a = f.walls[i];
-    const Wall& b = f.walls[j];
+    const ScanWall& a = f.walls[i];
+    const ScanWall& b = f.walls[j];
     const Eigen::Vector2d da = a.direction(), db = b.direction();
     Eigen::Vector2d x;
     if (!intersect(a.start, da, b.start, db, x))
@@ -553,7 +585,7 @@ void LineFeatureExtractor::findCorners(ScanFeatures& f, bool full_circle) const
     if ((x - a.start).dot(da) < a.length() - config_.corner_max_gap_m ||
         (x - b.start).dot(db) > config_.corner_max_gap_m)
       continue;
-    Corner c;
+    ScanCorner c;
     c.point = x;
     c.wall_in = i;
     c.wall_out = j;
@@ -563,7 +595,10 @@ void LineFeatureExtractor::findCorners(ScanFeatures& f, bool full_circle) const
     // would flip a corner seen at a grazing angle).
     const double leg = x.norm();
     c.distances = cornerDistances(Eigen::Vector2d::Zero(), x, x - da * leg, x + db * leg);
-    c.type = gap <= config_.corner_max_gap_m ? classifyCorner(c.distances) : CornerType::kPotential;
+    // Seen only when the scan runs on from one wall to the other without a break: across a
+    // breakpoint one wall may pass behind the other (an occlusion edge, not a corner).
+    const bool continuous = group_of[a.last_index] == group_of[b.first_index];
+    c.type = gap <= config_.corner_max_gap_m && continuous ? classifyCorner(c.distances) : CornerType::kPotential;
     f.corners.push_back(c);
     // Seed 002: the two walls of a corner share its point.
     if (c.type != CornerType::kPotential)
@@ -608,7 +643,7 @@ void LineFeatureExtractor::findCorridors(ScanFeatures& f) const
     for (std::size_t oj = oi; oj < nw; ++oj)
     {
       const std::size_t k = order[oj];
-      const Wall& w = f.walls[k];
+      const ScanWall& w = f.walls[k];
       if (assigned[k] || w.direction().dot(line.dir) < cos_max ||
           std::abs(line.normal.dot(0.5 * (w.start + w.end)) - line.offset) > config_.corridor_line_offset_m)
         continue;
@@ -660,7 +695,7 @@ void LineFeatureExtractor::findCorridors(ScanFeatures& f) const
       continue;
     used[c.a] = used[c.b] = 1;
     const Line& la = lines[c.a];
-    Corridor corridor;
+    ScanCorridor corridor;
     corridor.side_a = la.walls;
     corridor.side_b = lines[c.b].walls;
     corridor.width_m = c.width;

@@ -10,7 +10,7 @@
 
 using sparse_nav::alignScans;
 using sparse_nav::classifyCorner;
-using sparse_nav::Corner;
+using sparse_nav::ScanCorner;
 using sparse_nav::cornerDistances;
 using sparse_nav::CornerType;
 using sparse_nav::LineFeatureConfig;
@@ -20,7 +20,7 @@ using sparse_nav::PointList2D;
 using sparse_nav::ProcrustesConfig;
 using sparse_nav::RangeScan;
 using sparse_nav::ScanFeatures;
-using sparse_nav::Wall;
+using sparse_nav::ScanWall;
 using Eigen::Vector2d;
 
 namespace
@@ -252,14 +252,14 @@ TEST(Walls, ARoomGivesFourDirectedWallsAndFourOuterCorners)
   {
     const int w = findWall(f, side, 0.05);
     ASSERT_GE(w, 0) << "side (" << side.a.transpose() << ") - (" << side.b.transpose() << ")";
-    const Wall& wall = f.walls[w];
+    const ScanWall& wall = f.walls[w];
     EXPECT_GT(wall.length(), (side.b - side.a).norm() - 0.05);  // ends snapped to the corners
     // Directed: the robot (origin) is on the left.
     const Vector2d d = wall.end - wall.start;
     EXPECT_GT(d.x() * (-wall.start.y()) - d.y() * (-wall.start.x()), 0.0);
   }
   ASSERT_EQ(f.corners.size(), 4u);
-  for (const Corner& c : f.corners)
+  for (const ScanCorner& c : f.corners)
   {
     EXPECT_EQ(c.type, CornerType::kOuter);
     EXPECT_NEAR(c.angle_deg, 90.0, 2.0);
@@ -357,7 +357,23 @@ TEST(Doors, AGapOfDoorWidthBetweenTwoWallsIsADoor)
   ASSERT_EQ(f.doors.size(), 1u);
   EXPECT_LT((f.doors[0].center() - Vector2d(0.5, 2)).norm(), 0.05);
   EXPECT_NEAR(f.doors[0].width(), 0.9, 0.06);
-  EXPECT_LT((f.walls[f.doors[0].wall_before].end - f.doors[0].start).norm(), 1e-9);
+  // The jamb lies on the wall's line, at most a beam beyond its last return.
+  EXPECT_LT((f.walls[f.doors[0].wall_before].end - f.doors[0].start).norm(), 0.05);
+  EXPECT_NEAR(f.doors[0].start.y(), 2.0, 0.02);
+}
+
+TEST(Doors, AGapAtTheEndOfARecessIsADoor)
+{
+  // A 1 m wide passage (x from -0.5 to 0.5, y from 1 to 3) ahead of the robot ends in a 0.9 m
+  // door between 5 cm stubs; a wall at y = 6 behind it.
+  const std::vector<Seg> segs = { { { 0.5, 1 }, { 0.5, 3 } },   { { 0.5, 3 }, { 0.45, 3 } },
+                                  { { -0.45, 3 }, { -0.5, 3 } }, { { -0.5, 3 }, { -0.5, 1 } },
+                                  { { 6, 6 }, { -6, 6 } } };
+  const ScanFeatures f = LineFeatureExtractor().extract(castScan(segs, 721, 0.0, 0.25 * kDeg));
+  ASSERT_TRUE(f.ok) << f.reason;
+  ASSERT_EQ(f.doors.size(), 1u);
+  EXPECT_LT((f.doors[0].center() - Vector2d(0.0, 3.0)).norm(), 0.1);
+  EXPECT_NEAR(f.doors[0].width(), 1.0, 0.1);  // between the side walls' ends
 }
 
 TEST(Doors, WrongWidthOrABlockedGapIsNoDoor)

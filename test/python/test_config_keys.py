@@ -14,7 +14,8 @@ NODES = {"sim": "src/sparse_nav/ros/sim_node.py",
          "exit_finder": "src/sparse_nav/ros/exit_finder_node.py",
          "cloud_filter": "src/ros/cloud_filter_nodelet.cpp",
          "ground_mapper": "src/ros/ground_mapper_nodelet.cpp",
-         "grid_builder": "src/ros/grid_builder_nodelet.cpp"}
+         "grid_builder": "src/ros/grid_builder_nodelet.cpp",
+         "feature_extractor": "src/ros/feature_extractor_nodelet.cpp"}
 
 
 def params_read_by(source):

@@ -65,7 +65,7 @@ struct VirtualScanConfig
 RangeScan virtualScan(const PointList& points, const Pose2D& pose, const VirtualScanConfig& config);
 
 /// @brief A directed wall: the free side it was seen from is on the left of start -> end.
-struct Wall
+struct ScanWall
 {
   Eigen::Vector2d start = Eigen::Vector2d::Zero();  ///< [m]
   Eigen::Vector2d end = Eigen::Vector2d::Zero();    ///< [m]
@@ -78,11 +78,16 @@ struct Wall
   Eigen::Vector2d direction() const { return (end - start).normalized(); }
 };
 
-/// @brief An open door: the gap from the end of wall_before to the start of wall_after.
-struct Door
+/**
+ * @brief An open door: the gap from the end of wall_before to the start of wall_after, either in
+ * one wall line or at the far end of a recess whose side walls face each other. The jambs lie
+ * half a beam beyond the walls' last returns (on the walls' lines), which halves the bias of the
+ * width.
+ */
+struct ScanDoor
 {
-  Eigen::Vector2d start = Eigen::Vector2d::Zero();  ///< end point of wall_before [m]
-  Eigen::Vector2d end = Eigen::Vector2d::Zero();    ///< start point of wall_after [m]
+  Eigen::Vector2d start = Eigen::Vector2d::Zero();  ///< jamb at the end of wall_before [m]
+  Eigen::Vector2d end = Eigen::Vector2d::Zero();    ///< jamb at the start of wall_after [m]
   std::size_t wall_before = 0;
   std::size_t wall_after = 0;
 
@@ -94,7 +99,8 @@ struct Door
  * @brief Corner types of seed 002 §3.1, seen from the robot. kInner: the corner points at the robot
  * (the inside of a turn, e.g. a box corner or the protruding corner of an L-shaped hallway);
  * kOuter: the corner points away (a room corner); kPotential: two walls whose lines meet near,
- * but not at, their observed ends (the corner itself is hidden or beyond a gap).
+ * but not at, their observed ends, or across a break in the scan (the corner itself is hidden,
+ * beyond a gap, or one wall passes behind the other).
  */
 enum class CornerType : std::uint8_t
 {
@@ -125,7 +131,7 @@ CornerDistances cornerDistances(const Eigen::Vector2d& robot, const Eigen::Vecto
 CornerType classifyCorner(const CornerDistances& d);
 
 /// @brief Two walls meeting at `point`: the end of wall_in is the start of wall_out (seed 002 §1.2.1).
-struct Corner
+struct ScanCorner
 {
   Eigen::Vector2d point = Eigen::Vector2d::Zero();  ///< [m]
   std::size_t wall_in = 0;
@@ -136,7 +142,7 @@ struct Corner
 };
 
 /// @brief Two facing lists of nearly parallel walls (indices into ScanFeatures::walls).
-struct Corridor
+struct ScanCorridor
 {
   std::vector<std::size_t> side_a;
   std::vector<std::size_t> side_b;
@@ -151,10 +157,10 @@ struct ScanFeatures
 {
   bool ok = false;
   std::string reason;  ///< why the scan was refused (ok false), or empty
-  std::vector<Wall> walls;
-  std::vector<Door> doors;
-  std::vector<Corner> corners;
-  std::vector<Corridor> corridors;
+  std::vector<ScanWall> walls;
+  std::vector<ScanDoor> doors;
+  std::vector<ScanCorner> corners;
+  std::vector<ScanCorridor> corridors;
   PointList2D points;             ///< valid scan points in processing order [m]
   std::size_t n_ruptures = 0;     ///< beams without a usable return
   std::size_t n_breakpoints = 0;  ///< adaptive breakpoints between consecutive valid points
@@ -234,8 +240,8 @@ public:
   const LineFeatureConfig& config() const { return config_; }
 
 private:
-  void findDoors(ScanFeatures& f, bool full_circle) const;
-  void findCorners(ScanFeatures& f, bool full_circle) const;
+  void findDoors(ScanFeatures& f, bool full_circle, double increment_rad) const;
+  void findCorners(ScanFeatures& f, bool full_circle, const std::vector<std::uint32_t>& group_of) const;
   void findCorridors(ScanFeatures& f) const;
 
   LineFeatureConfig config_;

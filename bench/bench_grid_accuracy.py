@@ -10,6 +10,7 @@ measure the grid pipeline, not the scale estimate), goes through build_grid. Rep
 - whether each true exit is passable: non-occupied cells connect the start to a point 0.6 m
   beyond the door, through observed free space or the door's neighbourhood;
 - floor tilt error when the cloud is tilted by 0, 5, 10 and 15 degrees.
+Free-space rays start at the world's start position at the drone's flight height (--camera).
 Writes bench/results/grid_accuracy.json. Does not read ../shared.
 """
 import collections
@@ -46,11 +47,12 @@ def scanned_cloud(world):
     return sim.slam_to_world(sim.slam_output().all_points)
 
 
-def run_build_grid(points, prefix):
+def run_build_grid(points, prefix, camera):
     csv = prefix + ".csv"
     write_points_csv(csv, points)
-    out = subprocess.run([BUILD_GRID, csv, "--out", prefix, "--json", *PIPELINE_ARGS],
-                         capture_output=True, text=True)
+    camera_arg = ",".join(f"{v:.4f}" for v in camera)
+    out = subprocess.run([BUILD_GRID, csv, "--out", prefix, "--json", "--camera", camera_arg,
+                          *PIPELINE_ARGS], capture_output=True, text=True)
     report = json.loads(out.stdout) if out.stdout.strip().startswith("{") else {}
     if out.returncode != 0:
         return report, None
@@ -116,7 +118,9 @@ def main():
     for name in list_worlds():
         world = load_world(name)
         points = scanned_cloud(world)
-        report, grid = run_build_grid(points, os.path.join(tmp, name))
+        # The scan turns in place around the start at the flight height: free-space rays start there.
+        camera = np.array([world.start[0], world.start[1], SimConfig().drone_flight_height_m])
+        report, grid = run_build_grid(points, os.path.join(tmp, name), camera)
         row = {"world": name, "points": int(len(points))}
         if grid is None:
             row["error"] = report.get("error", "build_grid failed")
@@ -141,7 +145,8 @@ def main():
                                  for e in world.exits]
         row["floor_tilt_error_deg"] = {}
         for degrees in (0, 5, 10, 15):
-            rep, _ = run_build_grid(tilt(points, degrees), os.path.join(tmp, f"{name}_t{degrees}"))
+            rep, _ = run_build_grid(tilt(points, degrees), os.path.join(tmp, f"{name}_t{degrees}"),
+                                    tilt(camera[None, :], degrees)[0])
             floor = rep.get("floor", {})
             row["floor_tilt_error_deg"][degrees] = (round(abs(floor["tilt_deg"] - degrees), 2)
                                                     if floor.get("found") else "no floor")

@@ -62,6 +62,8 @@ std::string usage()
       "  --no-free-space-filter  keep obstacle points whose voxel the octree has proven free\n"
       "  --no-octree             skip the OctoMap octree\n"
       "  --save-octree           also write PREFIX.bt\n"
+      "  --camera X,Y,Z          a camera position in the file's frame (repeatable); free-space rays\n"
+      "                          start at the nearest one (default: the origin, ORB-SLAM's first camera)\n"
       "  --update FILE2          after FILE, process FILE2 (the changed cloud) as an incremental\n"
       "                          update of the same pipeline; the outputs show the updated grid\n"
       "  --json                  print {\"n_points\", \"stages_ms\", \"total_ms\", floor, grid} on stdout,\n"
@@ -80,6 +82,7 @@ struct Args
   bool json = false;
   bool save_octree = false;
   std::string up_axis = "-y";
+  sparse_nav::PointList cameras;
   sparse_nav::GridPipelineConfig config;
 };
 
@@ -117,6 +120,18 @@ Args parseArgs(int argc, char** argv)
       a.out = value();
     else if (arg == "--update")
       a.update = value();
+    else if (arg == "--camera")
+    {
+      std::string v = value();
+      for (char& c : v)
+        c = c == ',' ? ' ' : c;
+      std::istringstream in(v);
+      double x, y, z;
+      std::string rest;
+      if (!(in >> x >> y >> z) || (in >> rest) || !std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
+        throw std::invalid_argument("--camera needs X,Y,Z, got '" + std::string(argv[i]) + "'");
+      a.cameras.emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z));
+    }
     else if (arg == "--floor-planes")
       a.config.ground.floor.max_planes = static_cast<int>(number(arg, value()));
     else if (arg == "--free-space-factor")
@@ -300,7 +315,7 @@ int main(int argc, char** argv)
   }
 
   sparse_nav::GridPipeline pipeline(args.config);
-  sparse_nav::GridPipelineResult result = pipeline.process(file.points, sparse_nav::PointList());
+  sparse_nav::GridPipelineResult result = pipeline.process(file.points, args.cameras);
   result.stages_ms["read"] = read_ms;
 
   std::ostringstream json;
@@ -378,7 +393,7 @@ int main(int argc, char** argv)
       std::cerr << "build_grid: --update: " << file2.error << "\n";
       return 2;
     }
-    update = pipeline.process(file2.points, sparse_nav::PointList());
+    update = pipeline.process(file2.points, args.cameras);
     update.stages_ms["read"] = read2_ms;
     if (!update.ok)
     {
@@ -402,7 +417,10 @@ int main(int argc, char** argv)
   }
   try
   {
-    const Eigen::Vector3d camera = result.slam_to_map * Eigen::Vector3d::Zero();
+    const Eigen::Vector3d first = args.cameras.empty() ? Eigen::Vector3d::Zero()
+                                                       : Eigen::Vector3d(args.cameras.front().cast<double>() *
+                                                                         args.config.metres_per_unit);
+    const Eigen::Vector3d camera = result.slam_to_map * first;
     written = written && cv::imwrite(png, picture(grid, pipeline.builder().lastShape(), camera));
   }
   catch (const cv::Exception& e)

@@ -328,7 +328,7 @@ def test_republished_path_keeps_progress_and_a_new_one_is_projected_whole():
 
 
 def test_go_to_wall_notices_a_stall_with_the_fail_counter():
-    c = MotionController(MotionConfig(wall_max_fails=3, wall_stall_fraction=0.3,
+    c = MotionController(MotionConfig(wall_max_fails=3, stall_fraction=0.3,
                                       wall_back_off_m=0.0))
     c.start_wall()
     dt, advances = 0.1, [0.015, 0.0, 0.015, 0.001, 0.0, 0.0, 0.0, 0.0]
@@ -344,3 +344,39 @@ def test_go_to_wall_notices_a_stall_with_the_fail_counter():
     assert states == [WALL_SEEKING] * 6 + [WALL_REACHED]
     assert "stalled" in c.step(1.0).reason
     assert c.wall.travelled_m == pytest.approx(0.031)
+
+
+def test_blocked_robot_stops_until_a_different_path():
+    c = MotionController(MotionConfig(stall_timeout_s=3.0, stall_fraction=0.3))
+    path = [[0, 0], [3, 0]]
+    c.set_path(path, 0.0, 0.0)
+    t, dt, x = 0.0, 0.1, 0.0
+    states = []
+    while t < 10.0:
+        c.set_pose(x, 0.0, 0.0, t, t)
+        c.set_path(path, t, t)                     # republished unchanged
+        d = c.step(t)
+        states.append(d.state)
+        advance = d.linear_m_s * dt if t < 2.0 else 0.0   # hits something at t = 2 s
+        x += advance
+        t += dt
+        c.follow_moved(d.linear_m_s * dt, advance, t)
+    assert states[0] == FOLLOWING and states[-1] == FAILED
+    blocked_at = states.index(FAILED) * dt
+    # Over the last 3 s it advanced less than 30% of the command: 2.1 s after the hit.
+    assert 3.9 < blocked_at < 4.3
+    assert "blocked" in c.step(t).reason and not c.step(t).moving
+    c.set_path([[x, 0.0], [x, 1.0]], t, t)        # a replan around the obstacle
+    assert c.step(t).state == FOLLOWING
+
+
+def test_turning_creep_against_a_wall_is_not_a_stall():
+    c = MotionController(MotionConfig(stall_timeout_s=1.0))
+    c.set_path([[0, 0], [-2, 0]], 0.0, 0.0)         # behind the robot: it turns with the creep
+    for i in range(40):
+        t = i * 0.1
+        c.set_pose(0.0, 0.0, 0.0, t, t)
+        c.set_path([[0, 0], [-2, 0]], t, t)
+        d = c.step(t)
+        c.follow_moved(d.linear_m_s * 0.1, 0.0, t + 0.1)
+        assert d.state == FOLLOWING

@@ -5,6 +5,7 @@ discrete SDK command (seed 001: signed angle rounded to whole degrees, then a fo
 within the Tello's limits. Whenever the pose, the map alignment or the path is older than its
 timeout, or SLAM tracking is lost, the step says stop: zero velocity, no further drone command.
 """
+import collections
 import dataclasses
 import math
 
@@ -46,8 +47,10 @@ class MotionConfig:
     wall_step_cm: int = 30             # drone's approach step
     wall_back_off_m: float = 0.3       # backs off this far once at the wall
     wall_max_distance_m: float = 6.0   # gives up when no wall was met within this
-    wall_stall_fraction: float = 0.3   # ground: advancing less than this share of the commanded
-    #                                    distance (wheel odometry) is a miss: pushing on something
+    stall_fraction: float = 0.3        # ground: advancing less than this share of the commanded
+    #                                    distance (wheel odometry) is a stall: pushing on something
+    stall_timeout_s: float = 3.0       # following: less than stall_fraction of the commanded
+    #                                    distance over this window means blocked: stop
 
     def validate(self):
         if self.robot not in ("ground", "drone"):
@@ -79,8 +82,10 @@ class MotionConfig:
             raise ValueError("wall_min_tracked_points must be >= 0, wall_max_fails >= 1")
         if self.wall_back_off_m < 0:
             raise ValueError("wall_back_off_m must be >= 0")
-        if not 0 <= self.wall_stall_fraction < 1:
-            raise ValueError("wall_stall_fraction must be in [0, 1)")
+        if not 0 <= self.stall_fraction < 1:
+            raise ValueError("stall_fraction must be in [0, 1)")
+        if not self.stall_timeout_s > 0:
+            raise ValueError("stall_timeout_s must be > 0")
 
 
 class StalenessGuard:
@@ -126,7 +131,7 @@ class WallSeeker:
 
     A miss is a step with fewer than ``wall_min_tracked_points`` tracked points (or none recent),
     or, where odometry measures the advance, a step that advanced less than
-    ``wall_stall_fraction`` of what was commanded (the robot pushes against the wall while its
+    ``stall_fraction`` of what was commanded (the robot pushes against the wall while its
     camera, too close to focus on it, may still track points elsewhere). ``wall_max_fails``
     consecutive misses mean the wall is reached, and a single good step resets the counter, so
     momentary misses do not stop the approach early. A blocked move (a drone's "error: obstacle")
@@ -178,7 +183,7 @@ class WallSeeker:
             advanced = commanded_m if measured_m is None else measured_m
             self.travelled_m += max(advanced, 0.0)
             if measured_m is not None and commanded_m > 1e-6:
-                self._stalled = measured_m < self.cfg.wall_stall_fraction * commanded_m
+                self._stalled = measured_m < self.cfg.stall_fraction * commanded_m
         elif self.phase == self.BACKING:
             # Dead reckoning: backing off must end even if something behind holds the robot.
             self.backed_m += max(-commanded_m, 0.0)
@@ -225,6 +230,9 @@ class MotionController:
         self.mode = "path"
         self.tracked = None              # (count, stamp_s)
         self.idle_reason = "no path yet"
+        self.blocked = ""                # why the path cannot be followed further, or ""
+        self._progress = collections.deque()   # (stamp_s, commanded_m, measured_m)
+        self._last_linear = 0.0
 
     @property
     def goal_tolerance_m(self):
@@ -255,7 +263,8 @@ class MotionController:
         if stamp_s < self.map_switch_s:
             raise ValueError(f"path planned at {stamp_s:.2f} s, before the SLAM map switch at "
                              f"{self.map_switch_s:.2f} s")
-        self.follower.set_path(points)
+        if self.follower.set_path(points):
+            self._unblock()
         self.guard.mark("path", now_s)
         self.mode = "path"
 
@@ -271,17 +280,45 @@ class MotionController:
             self.idle_reason = f"SLAM map switched to {map_index}: waiting for a new path"
         self.map_index = map_index
 
+    def follow_moved(self, commanded_m, measured_m, now_s):
+        """Ground robot following a path: forward distance commanded since the last step and the
+        distance the wheel odometry advanced (m). Less than stall_fraction of the commanded
+        distance over the last stall_timeout_s means blocked: the robot stops (FAILED) until a
+        different path arrives."""
+        if self.mode != "path" or self.follower.points is None or measured_m is None:
+            self._progress.clear()
+            return
+        if self._last_linear <= self.cfg.min_linear_m_s + 1e-9:
+            # Turning with the creep may push on a wall until the robot faces away: not a stall.
+            commanded_m = measured_m = 0.0
+        self._progress.append((now_s, max(commanded_m, 0.0), measured_m))
+        while self._progress and now_s - self._progress[0][0] > self.cfg.stall_timeout_s:
+            self._progress.popleft()
+        span = now_s - self._progress[0][0]
+        commanded = sum(c for _, c, _ in self._progress)
+        measured = sum(m for _, _, m in self._progress)
+        if span >= 0.9 * self.cfg.stall_timeout_s and commanded > 0.02 \
+                and measured < self.cfg.stall_fraction * commanded:
+            self.blocked = (f"blocked: advanced {measured:.2f} m of {commanded:.2f} m commanded "
+                            f"in {span:.1f} s; waiting for a different path")
+
+    def _unblock(self):
+        self.blocked = ""
+        self._progress.clear()
+
     def set_tracked(self, n_points, stamp_s):
         self.tracked = (int(n_points), stamp_s)
 
     def start_wall(self):
         """Begin go-to-wall in the current heading (the path, if any, is dropped)."""
+        self._unblock()
         self.follower.clear()
         self.guard.forget("path")
         self.mode = "wall"
         self.wall.start()
 
     def stop(self, reason="stopped on request"):
+        self._unblock()
         self.follower.clear()
         self.guard.forget("path")
         self.mode = "path"
@@ -303,6 +340,8 @@ class MotionController:
             return Decision(IDLE, self.idle_reason)
         if self.lost:
             return Decision(STOPPED_LOST, f"SLAM lost: {self.lost_reason}".rstrip(": "))
+        if self.blocked:
+            return Decision(FAILED, self.blocked)
         stale = self.guard.stale(now_s)
         if stale:
             return Decision(STOPPED_STALE, "stale input: " + ", ".join(
@@ -323,6 +362,7 @@ class MotionController:
                                              self.cfg.drone_max_step_cm)
             return decision
         decision.linear_m_s, decision.angular_rad_s = self._velocity(target)
+        self._last_linear = decision.linear_m_s
         return decision
 
     def _velocity(self, target):

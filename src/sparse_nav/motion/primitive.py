@@ -56,7 +56,8 @@ class PathFollower:
         self._global_projection = True
 
     def set_path(self, points):
-        """Follow ``points`` (N, 2) m from its start; raises ValueError if malformed."""
+        """Follow ``points`` (N, 2) m from its start; returns False when it is the path already
+        followed (republished), True for a new one. Raises ValueError if malformed."""
         pts = np.asarray(points, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) == 0:
             raise ValueError(f"path must be (N >= 1, 2), got shape {pts.shape}")
@@ -66,13 +67,14 @@ class PathFollower:
         pts = pts[keep]
         if self.points is not None and pts.shape == self.points.shape \
                 and np.allclose(pts, self.points, rtol=0.0, atol=1e-6):
-            return   # the same path republished: keep the progress along it
+            return False   # the same path republished: keep the progress along it
         self.points = pts
         seg = np.linalg.norm(np.diff(self.points, axis=0), axis=1)
         self._cum = np.concatenate([[0.0], np.cumsum(seg)])
         self._progress_m = 0.0
         # A new path (a replan) may start behind the robot: the first projection searches it all.
         self._global_projection = True
+        return True
 
     def clear(self):
         self.points = None

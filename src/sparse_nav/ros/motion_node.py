@@ -32,7 +32,8 @@ def _config_from_params():
                   "drone_goal_tolerance_m", "drone_max_step_cm", "drone_min_turn_deg",
                   "pose_timeout_s", "map_timeout_s", "path_timeout_s", "tracked_timeout_s",
                   "wall_min_tracked_points", "wall_max_fails", "wall_speed_m_s", "wall_step_cm",
-                  "wall_back_off_m", "wall_max_distance_m", "wall_stall_fraction"):
+                  "wall_back_off_m", "wall_max_distance_m", "stall_fraction",
+                  "stall_timeout_s"):
         setattr(cfg, field, type(getattr(cfg, field))(rospy.get_param("~" + field,
                                                                        getattr(cfg, field))))
     cfg.validate()
@@ -77,7 +78,7 @@ class MotionNode:
         self.answered_at_s = -math.inf
         self.failures = 0
         self.odom_pose = None          # (x, y, yaw) of base in odom: the wheel odometry
-        self.wall_odom_start = None
+        self.prev_odom_pose = None     # at the last control step
 
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(10.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
@@ -135,7 +136,7 @@ class MotionNode:
             if self.ctl.lost:
                 return TriggerResponse(success=False, message="SLAM is lost")
             self.ctl.start_wall()
-            self.wall_odom_start = None
+            self.prev_odom_pose = None
         return TriggerResponse(success=True, message="going to the wall ahead")
 
     def _on_stop(self, _req):
@@ -177,11 +178,13 @@ class MotionNode:
             self.last_tick_s = now
 
     def _ground_step(self, now):
-        if self.ctl.mode == "wall":
-            if self.last_tick_s is not None:
-                self.ctl.wall_moved(self.last_twist[0] * (now - self.last_tick_s),
-                                    self._odom_advance())
-            self.wall_odom_start = self.odom_pose
+        if self.last_tick_s is not None:
+            commanded = self.last_twist[0] * (now - self.last_tick_s)
+            if self.ctl.mode == "wall":
+                self.ctl.wall_moved(commanded, self._odom_advance())
+            else:
+                self.ctl.follow_moved(commanded, self._odom_advance(), now)
+        self.prev_odom_pose = self.odom_pose
         decision = self.ctl.step(now)
         if decision.moving:
             self._send_twist(decision.linear_m_s, decision.angular_rad_s)
@@ -196,9 +199,9 @@ class MotionNode:
 
     def _odom_advance(self):
         """Distance (m) the wheel odometry advanced along the heading since the last tick."""
-        if self.odom_pose is None or self.wall_odom_start is None:
+        if self.odom_pose is None or self.prev_odom_pose is None:
             return None
-        (x0, y0, yaw0), (x1, y1, _) = self.wall_odom_start, self.odom_pose
+        (x0, y0, yaw0), (x1, y1, _) = self.prev_odom_pose, self.odom_pose
         return (x1 - x0) * math.cos(yaw0) + (y1 - y0) * math.sin(yaw0)
 
     def _send_twist(self, v, w):

@@ -10,7 +10,7 @@ from geometry_msgs.msg import PointStamped
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
-from sparse_nav.msg import ExitCandidates
+from sparse_nav.msg import Door, ExitCandidates, Features
 from sparse_nav.ros.conversions import points_to_cloud
 from sparse_nav.srv import FindExit
 
@@ -42,6 +42,7 @@ class ExitFinderBadInputTest(unittest.TestCase):
         self.exits = []
         rospy.Subscriber("exit", PointStamped, self._on_exit, queue_size=10)
         self.pub = rospy.Publisher("slam/points", PointCloud2, queue_size=2, latch=True)
+        self.features_pub = rospy.Publisher("features", Features, queue_size=2, latch=True)
         rospy.wait_for_service("exit_finder/find_exit", 60.0)
         self.find = rospy.ServiceProxy("exit_finder/find_exit", FindExit)
 
@@ -100,6 +101,27 @@ class ExitFinderBadInputTest(unittest.TestCase):
                         f"at the door: ({best.x:.2f}, {best.y:.2f})")
         n_good = self._n_exits()
         self.assertEqual(n_good, 1, "the exit is published once")
+
+        # The feature extractor's door at the same place raises the confidence; a NaN door and
+        # one in an unknown frame are ignored.
+        door = Door(width_m=1.0)
+        door.center.x, door.center.y = DOOR[0] - 3.0, DOOR[1] - 2.5
+        nan_door = Door(width_m=1.0)
+        nan_door.center.x = float("nan")
+        self.features_pub.publish(Features(header=Header(frame_id="nowhere"), ok=True,
+                                           doors=[door]))
+        rospy.sleep(1.5)
+        same = self.find(method="")
+        self.assertAlmostEqual(same.candidates.scores[0], good.candidates.scores[0], places=6)
+        self.features_pub.publish(Features(header=Header(frame_id="map", stamp=rospy.Time.now()),
+                                           ok=True, doors=[door, nan_door]))
+        rospy.sleep(1.5)
+        fused = self.find(method="")
+        self.assertTrue(fused.success)
+        self.assertGreater(fused.candidates.scores[0], good.candidates.scores[0] + 0.05,
+                           "a matching door gap raises the confidence")
+        top = fused.candidates.exits[0]
+        self.assertLess(np.hypot(top.x - best.x, top.y - best.y), 0.3, "the same door")
 
         nan_rows = synthetic_room()
         nan_rows[::5] = np.nan

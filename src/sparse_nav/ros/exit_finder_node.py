@@ -22,7 +22,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from sparse_nav.exit_finder import (DEFAULT_METHOD, METHODS, ExitFinderConfig, ExitFinderError,
                                     find_exit)
-from sparse_nav.msg import ExitCandidates
+from sparse_nav.msg import ExitCandidates, Features
 from sparse_nav.ros.conversions import CloudError, cloud_to_points, transform_to_matrix
 from sparse_nav.srv import FindExit, FindExitResponse
 
@@ -57,6 +57,8 @@ class ExitFinderNode:
         self.tf_timeout_s = float(rospy.get_param("~tf_timeout_s", 0.5))
         if not (np.isfinite(self.period_s) and self.period_s >= 0):
             raise ValueError(f"~period_s must be >= 0, got {self.period_s}")
+        self.use_door_gaps = bool(rospy.get_param("~use_door_gaps", True))
+        self.door_gaps_max_age_s = float(rospy.get_param("~door_gaps_max_age_s", 30.0))
 
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
@@ -72,6 +74,8 @@ class ExitFinderNode:
         self.n_bad_clouds = 0
         self.n_runs = 0
         self.last = None
+        self.door_gaps = None
+        self.door_gaps_stamp = None
 
         self.exit_pub = rospy.Publisher("exit", PointStamped, queue_size=1, latch=True)
         self.cand_pub = rospy.Publisher("exit_candidates", ExitCandidates, queue_size=1,
@@ -81,6 +85,8 @@ class ExitFinderNode:
         self.diag_pub = rospy.Publisher("/diagnostics", DiagnosticArray, queue_size=5)
         rospy.Subscriber("cloud", PointCloud2, self._on_cloud, queue_size=1,
                          buff_size=2 ** 24)
+        if self.use_door_gaps:
+            rospy.Subscriber("features", Features, self._on_features, queue_size=2)
         rospy.Service("~find_exit", FindExit, self._on_find_exit)
         self._publish(self._candidates(ExitCandidates.STATUS_NO_CLOUD,
                                        "no cloud received yet", rospy.Time(0)))
@@ -105,6 +111,32 @@ class ExitFinderNode:
             self.received_at = rospy.Time.now()
             self.cloud_seq += 1
             self.n_clouds += 1
+
+    def _on_features(self, msg):
+        """Keeps the feature extractor's latest doors as (x, y, width) in map_frame."""
+        if not msg.ok:
+            return
+        try:
+            centres = np.array([[d.center.x, d.center.y, d.center.z] for d in msg.doors],
+                               dtype=float).reshape(-1, 3)
+            widths = np.array([d.width_m for d in msg.doors], dtype=float)
+            centres = self._to_map(centres, msg.header)
+        except ValueError as exc:
+            rospy.logwarn_throttle(10.0, f"exit_finder: ignoring door gaps: {exc}")
+            return
+        good = np.isfinite(centres).all(axis=1) & np.isfinite(widths) & (widths > 0)
+        with self.lock:
+            self.door_gaps = np.column_stack([centres[good, :2], widths[good]])
+            self.door_gaps_stamp = rospy.Time.now()
+
+    def _recent_door_gaps(self):
+        """The latest door gaps if younger than door_gaps_max_age_s, else None."""
+        with self.lock:
+            gaps, stamp = self.door_gaps, self.door_gaps_stamp
+        if gaps is None or not len(gaps) or \
+                (rospy.Time.now() - stamp).to_sec() > self.door_gaps_max_age_s:
+            return None
+        return gaps
 
     def _to_map(self, points, header):
         """(N, 3) points of the header's frame in map_frame; ValueError for an unknown frame."""
@@ -171,7 +203,7 @@ class ExitFinderNode:
                                   if self.viewpoint != "robot" else "origin")
         try:
             result = find_exit(points, method=method, config=cfg, up_axis="z",
-                               viewpoint=self._viewpoint())
+                               viewpoint=self._viewpoint(), door_gaps=self._recent_door_gaps())
         except ExitFinderError as exc:
             rospy.logwarn_throttle(5.0, f"exit_finder: {exc.status}: {exc}")
             cand = self._candidates(exc.status, str(exc), stamp)

@@ -119,7 +119,11 @@ TEST(GridPipeline, IncrementalUpdateEqualsAFullRebuildOnTheSamePoints)
   }
   ASSERT_GT(moved, 10u);
 
-  GridPipeline incremental;
+  // The incremental pipeline keeps the floor of the first cloud; the full rebuild finds it in the
+  // second. Fitting every point (no subsampling) keeps that floor the same, since no floor point moved.
+  GridPipelineConfig cfg;
+  cfg.ground.floor.max_fit_points = 1000000;
+  GridPipeline incremental(cfg);
   const GridPipelineResult first = incremental.process(before, {});
   ASSERT_TRUE(first.ok) << first.status;
   const GridPipelineResult update = incremental.process(after, {});
@@ -130,11 +134,12 @@ TEST(GridPipeline, IncrementalUpdateEqualsAFullRebuildOnTheSamePoints)
   EXPECT_LE(update.octree.n_new_voxels, moved);
   EXPECT_GT(first.octree.n_new_voxels, 10 * update.octree.n_new_voxels);
 
-  GridPipeline full;
+  GridPipeline full(cfg);
   const GridPipelineResult rebuilt = full.process(after, {});
   ASSERT_TRUE(rebuilt.ok) << rebuilt.status;
   EXPECT_TRUE(rebuilt.grid.full_rebuild);
   EXPECT_EQ(update.n_obstacles, rebuilt.n_obstacles);
+  EXPECT_TRUE(update.slam_to_map.isApprox(rebuilt.slam_to_map, 1e-12));
   const auto& a = incremental.grid();
   const auto& b = full.grid();
   ASSERT_EQ(a.width, b.width);

@@ -50,10 +50,10 @@ def test_the_whole_mission_in_order():
     assert m.tick(navigator_state="following") == []
     actions = m.tick(navigator_state="reached")
     assert m.conductor.phase == Phase.PASS_THROUGH
-    beyond = actions[0].payload  # 1 m further along start -> exit
-    assert beyond == pytest.approx((3.6, 4.8))
+    beyond = actions[0].payload  # 1.5 m further along start -> exit
+    assert beyond == pytest.approx((3.9, 5.2))
     m.tick(navigator_state="following")
-    assert kinds(m.tick(robot_xy=(3.5, 4.7))) == [ActionKind.STOP]  # within tolerance
+    assert kinds(m.tick(robot_xy=(3.8, 5.1))) == [ActionKind.STOP]  # within tolerance
     assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
     phases = [tr.phase for tr in m.conductor.history]
     assert phases == [Phase.INITIAL_SCAN, Phase.WALL_SCAN, Phase.FIND_EXIT, Phase.GO_TO_EXIT,
@@ -182,6 +182,18 @@ def test_navigator_failures_count_after_a_grace_time_and_refind_the_exit():
     m.tick()
     assert kinds(m.tick(dt=3.0)) == [ActionKind.FIND_EXIT]
     assert m.conductor.phase == Phase.FIND_EXIT
+
+
+def test_a_failing_motion_layer_counts_like_a_navigator_failure():
+    m = Mission(ConductorConfig(goal_failure_grace_s=2.0, max_goal_failures=1,
+                                max_exit_attempts=1))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    m.tick(navigator_state="following", motion_failed=True)
+    m.tick(dt=3.0)
+    assert m.conductor.phase == Phase.GAVE_UP
+    assert m.conductor.reason == "motion failed 1 times"
 
 
 def test_stop_and_return_to_start():

@@ -68,6 +68,7 @@ class Observation:
     exit_xy: Optional[Tuple[float, float]] = None  # the newest answer of the exit finder
     exit_answered: bool = False          # the exit finder answered since the last request
     navigator_state: str = ""            # navigator/status state name, lower case
+    motion_failed: bool = False          # the motion layer gave up (blocked, refused commands)
     start_requested: bool = False
     stop_requested: bool = False
     return_requested: bool = False
@@ -83,7 +84,7 @@ class ConductorConfig:
     exit_answer_timeout_s: float = 20.0  # no answer from the exit finder in this time: retry
     max_goal_failures: int = 3           # navigator no_path/goal_in_obstacle answers per goal
     goal_failure_grace_s: float = 10.0   # a failure must last this long to count (replanning)
-    pass_through_m: float = 1.0          # beyond the exit, away from the room
+    pass_through_m: float = 1.5          # beyond the exit, away from the room
     reached_tolerance_m: float = 0.4     # the navigator's "reached" or this close counts
     lost_timeout_s: float = 60.0         # tracking lost longer than this: gave up
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
@@ -300,7 +301,9 @@ class Conductor:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit" if self.phase ==
                       Phase.PASS_THROUGH else "back at the start")
             return [Action(ActionKind.STOP)]
-        if obs.navigator_state in _FAILED_NAVIGATION:
+        failure = (f"navigator: {obs.navigator_state}" if obs.navigator_state in _FAILED_NAVIGATION
+                   else "motion failed" if obs.motion_failed else None)
+        if failure is not None:
             if self._failure_since_s is None:
                 self._failure_since_s = t
             elif t - self._failure_since_s > cfg.goal_failure_grace_s:
@@ -308,10 +311,9 @@ class Conductor:
                 self._failure_since_s = None
                 if self._goal_failures >= cfg.max_goal_failures:
                     if self.phase == Phase.GO_TO_EXIT and self._exit_attempts < cfg.max_exit_attempts:
-                        return self._ask_exit(t, f"navigator: {obs.navigator_state} to the exit; "
+                        return self._ask_exit(t, f"{failure} on the way to the exit; "
                                               "look for it again")
-                    return self._give_up(t, f"navigator: {obs.navigator_state} "
-                                         f"{self._goal_failures} times")
+                    return self._give_up(t, f"{failure} {self._goal_failures} times")
                 return [Action(ActionKind.GOAL, self.goal_xy)]
         else:
             self._failure_since_s = None

@@ -15,9 +15,9 @@ from nav_msgs.msg import OccupancyGrid
 from std_srvs.srv import Trigger, TriggerResponse
 
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, ScanRunner,
-                                  ScanRunnerConfig, State)
+                                  ScanRunnerConfig)
 from sparse_nav.conductor.grid_queries import GridView
-from sparse_nav.msg import ConductorState, SlamState
+from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.robot_io import StepExecutor, TelloClient
 from sparse_nav.scanning import (InitialScanConfig, Step, WallScanConfig, initial_scan,
@@ -81,6 +81,7 @@ class ConductorNode:
         self.diag_pub = rospy.Publisher("/diagnostics", DiagnosticArray, queue_size=5)
         rospy.Subscriber("slam/state", SlamState, self._on_slam_state, queue_size=10)
         rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=1)
+        rospy.Subscriber("motion/status", MotionStatus, self._on_motion_status, queue_size=10)
         rospy.Service("~start", Trigger, lambda _: self._request("start"))
         rospy.Service("~stop", Trigger, lambda _: self._request("stop"))
         rospy.Service("~return_to_start", Trigger, lambda _: self._request("return"))
@@ -94,6 +95,10 @@ class ConductorNode:
     def _on_slam_state(self, msg):
         with self.lock:
             self.obs.tracking_lost = msg.state == SlamState.LOST  # not initialised is no loss
+
+    def _on_motion_status(self, msg):
+        with self.lock:
+            self.obs.motion_failed = msg.state == MotionStatus.FAILED
 
     def _on_map(self, msg):
         if msg.info.resolution <= 0 or len(msg.data) != msg.info.width * msg.info.height:
@@ -262,8 +267,8 @@ class ConductorNode:
         self.diag_pub.publish(array)
 
     def _drone_upkeep(self):
-        """A Tello lands by itself after 15 s without a command: while the conductor holds the
-        drone (no scan, no goal) it sends "command" now and then; at the mission's end it lands."""
+        """A Tello lands by itself after 15 s without a command: when nobody (this node or the
+        motion node) has talked to it for keepalive_s, a "command"; at the mission's end, land."""
         if self.tello is None or not self.took_off or self.landed:
             return
         if self.scan_thread is not None and self.scan_thread.is_alive():
@@ -271,7 +276,7 @@ class ConductorNode:
         if self.conductor.phase.final:
             self.landed = True
             threading.Thread(target=self.tello.send, args=("land",), daemon=True).start()
-        elif self.conductor.state != State.GOAL:
+        else:
             idle = self.tello.idle_s()
             if idle is not None and idle > self.keepalive_s:
                 threading.Thread(target=self.tello.send, args=("command",), daemon=True).start()

@@ -14,7 +14,8 @@ TELLO_MIN_SPEED_CM_S = 10
 class TelloClient:
     """Sends SDK commands on tello/command one at a time and waits (sim time) for each answer.
 
-    The Tello answers in order and without an id, so only one command may be in flight.
+    The Tello answers in order and without an id, so only one command may be in flight. It also
+    watches the line for other senders' commands and answers, so idle_s() is the drone's idle time.
     """
 
     def __init__(self, timeout_s=30.0, on_wait=None):
@@ -23,13 +24,19 @@ class TelloClient:
         self._lock = threading.Lock()
         self._responses = []
         self._busy = threading.Lock()
-        self.last_sent = None  # rospy.Time of the last command sent
+        self.last_traffic = None  # rospy.Time of the last command or answer of anyone
         self._sub = rospy.Subscriber("tello/response", String, self._on_response, queue_size=20)
         self._pub = rospy.Publisher("tello/command", String, queue_size=10)
+        self._watch = rospy.Subscriber("tello/command", String, self._on_command, queue_size=20)
 
     def _on_response(self, msg):
         with self._lock:
             self._responses.append(msg.data)
+            self.last_traffic = rospy.Time.now()
+
+    def _on_command(self, _msg):
+        with self._lock:
+            self.last_traffic = rospy.Time.now()
 
     def send(self, text):
         """The drone's answer ("ok", "error: ..."), or "timeout"."""
@@ -37,7 +44,8 @@ class TelloClient:
             with self._lock:
                 before = len(self._responses)
             self._pub.publish(String(data=text))
-            self.last_sent = rospy.Time.now()
+            with self._lock:
+                self.last_traffic = rospy.Time.now()
             deadline = rospy.Time.now() + rospy.Duration(self.timeout_s)
             while not rospy.is_shutdown() and rospy.Time.now() < deadline:
                 with self._lock:
@@ -49,8 +57,10 @@ class TelloClient:
             return "timeout"
 
     def idle_s(self):
-        """Seconds since the last command, or None before the first."""
-        return None if self.last_sent is None else (rospy.Time.now() - self.last_sent).to_sec()
+        """Seconds since the last command or answer on the line, or None before the first."""
+        with self._lock:
+            last = self.last_traffic
+        return None if last is None else (rospy.Time.now() - last).to_sec()
 
 
 class StepExecutor:

@@ -7,8 +7,9 @@
    Procrustes between consecutive scans against the logs' corrected poses.
 2. Accuracy, on the shipped simulator worlds (no ../shared data): from many random free poses per
    world, a 360-beam scan is ray-cast in the world's walls and box footprints (the virtual scan a
-   dense obstacle cloud gives, range 10 m) with Gaussian range noise, and the features are scored
-   against the world geometry:
+   dense obstacle cloud gives, range 10 m) with Gaussian range noise (sigma 1 cm and 3 cm; the
+   extractor is given that sigma and a split threshold of max(5 cm, 4 sigma)), and the features
+   are scored against the world geometry:
    - walls: a detected wall is right when both its ends lie within 0.1 m of one true wall line
      (collinear touching world segments joined; door gaps split them) and its direction is within
      5 deg; a true wall counts as seen when a run of >= 5 consecutive beams over >= 0.3 m hits it,
@@ -385,7 +386,9 @@ def bench_worlds(tool, worlds, n_poses, sigma, seed):
             with open(path, "w") as f:
                 for r in rows:
                     f.write(",".join(str(v) for v in r) + "\n")
-            out = run_tool(tool, path, "--world", "--max-range", str(RANGE_MAX_M))
+            # The extractor is told the sensor's noise: breakpoint sigma and a split threshold of 4 sigma.
+            out = run_tool(tool, path, "--world", "--max-range", str(RANGE_MAX_M), "--sigma", str(sigma),
+                           "--split", str(max(0.05, 4.0 * sigma)))
             timing.append(out["scans_per_s"])
             sums = {}
             for det, gt, pose in zip(out["scans"], gts, poses):
@@ -409,7 +412,8 @@ def bench_worlds(tool, worlds, n_poses, sigma, seed):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--poses", type=int, default=100, help="random poses per world (default 100)")
-    ap.add_argument("--sigma", type=float, default=0.01, help="range noise sigma in metres (default 0.01)")
+    ap.add_argument("--sigma", default="0.01,0.03",
+                    help="range noise sigmas in metres, comma-separated (default 0.01,0.03)")
     ap.add_argument("--repeat", type=int, default=20, help="extraction passes per log for timing (default 20)")
     ap.add_argument("--seed", type=int, default=2)
     args = ap.parse_args()
@@ -419,8 +423,10 @@ def main():
         return 2
     print(f"extract_features: {tool}")
     logs = bench_logs(tool, args.repeat)
-    print(f"\nsimulator worlds: {args.poses} poses each, {N_BEAMS} beams, range noise sigma {args.sigma} m")
-    accuracy = bench_worlds(tool, list_worlds(), args.poses, args.sigma, args.seed)
+    accuracy = {}
+    for sigma in [float(v) for v in args.sigma.split(",")]:
+        print(f"\nsimulator worlds: {args.poses} poses each, {N_BEAMS} beams, range noise sigma {sigma} m")
+        accuracy[f"sigma_{sigma:g}_m"] = bench_worlds(tool, list_worlds(), args.poses, sigma, args.seed)
     result = {"carmen_logs": logs, "carmen_dir": LASER_DIR, "accuracy": accuracy,
               "settings": {"poses_per_world": args.poses, "beams": N_BEAMS, "range_max_m": RANGE_MAX_M,
                            "noise_sigma_m": args.sigma, "seed": args.seed, "repeat": args.repeat,

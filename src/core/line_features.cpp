@@ -868,6 +868,13 @@ ProcrustesResult alignScans(const PointList2D& source_in, const PointList2D& tar
   }
   res.ok = true;
   res.transform = t;
+  std::size_t inliers = 0;
+  for (const auto& p : source)
+  {
+    double d = 0.0;
+    inliers += grid.nearest(t * p, 2.0 * config.min_correspondence_m, d) >= 0;
+  }
+  res.inlier_fraction = static_cast<double>(inliers) / static_cast<double>(source.size());
   return res;
 }
 

@@ -255,11 +255,8 @@ MatchStats matchConsecutive(const std::vector<sparse_nav::ScanRecord>& scans, co
   const auto t0 = std::chrono::steady_clock::now();
   Eigen::Isometry2d last = Eigen::Isometry2d::Identity();
   bool have_last = false;
-  // More pairs at the final pairing distance, then the smaller RMS.
   auto better = [](const sparse_nav::ProcrustesResult& a, const sparse_nav::ProcrustesResult& b) {
-    if (a.n_pairs != b.n_pairs && (a.n_pairs > 1.1 * b.n_pairs || b.n_pairs > 1.1 * a.n_pairs))
-      return a.n_pairs > b.n_pairs;
-    return a.rms_m < b.rms_m;
+    return a.inlier_fraction > b.inlier_fraction;
   };
   for (std::size_t i = 1; i < scans.size(); ++i)
   {
@@ -269,15 +266,19 @@ MatchStats matchConsecutive(const std::vector<sparse_nav::ScanRecord>& scans, co
       continue;
     }
     ++st.pairs;
-    // Maps scan i's points into scan i-1's frame; the truth is pose(i-1)^-1 * pose(i). Two starts,
-    // standing still and the previous estimated motion (constant velocity); the tighter fit wins.
-    auto r = sparse_nav::alignScans(points[i], points[i - 1], pcfg);
-    if (have_last)
-    {
-      const auto cv = sparse_nav::alignScans(points[i], points[i - 1], pcfg, last);
-      if (cv.ok && (!r.ok || better(cv, r)))
-        r = cv;
-    }
+    // Maps scan i's points into scan i-1's frame; the truth is pose(i-1)^-1 * pose(i). Starts: at
+    // rest and at the previous estimated motion (constant velocity), each turned by 0 and +-15 deg
+    // (nearest neighbours only pull a few degrees); the one that overlaps most wins.
+    sparse_nav::ProcrustesResult r;
+    for (int k = 0; k < (have_last ? 2 : 1); ++k)
+      for (double turn_deg : { 0.0, -15.0, 15.0 })
+      {
+        Eigen::Isometry2d start = k == 0 ? Eigen::Isometry2d::Identity() : last;
+        start.rotate(turn_deg * M_PI / 180.0);
+        const auto candidate = sparse_nav::alignScans(points[i], points[i - 1], pcfg, start);
+        if (candidate.ok && (!r.ok || better(candidate, r)))
+          r = candidate;
+      }
     have_last = r.ok;
     if (r.ok)
       last = r.transform;

@@ -494,6 +494,14 @@ TEST(Procrustes, RecoversAKnownMotion)
   EXPECT_NEAR(Eigen::Rotation2Dd(r.transform.linear()).angle(), 8.0 * kDeg, 1e-4);
   EXPECT_GT(r.transform.linear().determinant(), 0.0);
   EXPECT_LT(r.rms_m, 1e-3);
+  EXPECT_DOUBLE_EQ(r.inlier_fraction, 1.0);
+  // Half of the source moved away: half of it overlaps the target.
+  PointList2D half = source;
+  for (std::size_t i = 0; i < half.size(); i += 2)
+    half[i] += Vector2d(50.0, 50.0);
+  const auto h = alignScans(half, target, ProcrustesConfig());
+  ASSERT_TRUE(h.ok) << h.reason;
+  EXPECT_NEAR(h.inlier_fraction, 0.5, 0.01);
 }
 
 TEST(Procrustes, NoReflectionAndBadInput)

@@ -272,6 +272,9 @@ struct ProcrustesResult
   double rms_m = 0.0;       ///< RMS distance of the final pairs [m]
   std::size_t n_pairs = 0;  ///< pairs in the final iteration
   int iterations = 0;
+  /// Share of the source points within 2 * min_correspondence_m of a target point once aligned:
+  /// how much of the two scans overlaps, to compare alignments from different starts.
+  double inlier_fraction = 0.0;
 };
 
 /**

@@ -45,7 +45,7 @@ struct FloorDetectorConfig
   /// A fitted floor whose normal is further than this from the walls' up is taken for a slab of
   /// wall bottoms; the floor is then perpendicular to the walls at their lower envelope [deg].
   double max_wall_disagreement_deg = 1.0;
-  std::size_t max_fit_points = 4000;   ///< larger clouds are subsampled (fixed stride)
+  std::size_t max_fit_points = 10000;  ///< larger clouds are subsampled (fixed stride)
 
   /// @brief Throws std::invalid_argument when a value is out of range.
   void validate() const;

@@ -100,6 +100,8 @@ class ConductorNodeTest(unittest.TestCase):
         self.assertTrue(any(c.startswith("speed") for c in commands))
         self.assertGreater(sum(1 for c in commands if c.split()[0] in ("cw", "ccw")), 12,
                            "the scans turn the drone")
+        # A goal is sent again after a loss or a recovery; the distinct goals are what matters.
+        goals = [g for i, g in enumerate(goals) if i == 0 or g != goals[i - 1]]
         self.assertEqual(len(goals), 2, f"a goal to the exit, then beyond it: {goals}")
         self.assertEqual(goals[0], ("map", EXIT[0], EXIT[1]))
         last = states[-1]

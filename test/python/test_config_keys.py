@@ -22,8 +22,8 @@ def params_read_by(source):
     text = open(os.path.join(ROOT, source)).read()
     keys = set(re.findall(r'get_param\(\s*"~(\w+)"', text))
     keys |= set(re.findall(r'loadParam\(pnh, "(\w+)"', text))
-    # slam_bridge reads its BridgeConfig fields in a loop over their names.
-    for block in re.findall(r'for field in \(([^)]*)\)', text):
+    # The rospy nodes read their Config fields by name with sparse_nav.ros.params.read_fields.
+    for block in re.findall(r'read_fields\(\w+, \(([^)]*)\)', text):
         keys |= set(re.findall(r'"(\w+)"', block))
     return keys
 

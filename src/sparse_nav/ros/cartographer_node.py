@@ -1,5 +1,4 @@
 """cartographer: one map fragment per SLAM map, kept across map switches and saved as it goes."""
-import functools
 import threading
 
 import rospy
@@ -11,22 +10,12 @@ from sparse_nav.cartographer import Cartographer, CartographerConfig, FragmentEr
 from sparse_nav.msg import SlamState
 from sparse_nav.ros.conversions import CloudError, cloud_to_points, points_to_cloud
 from sparse_nav.srv import ListFragments, ListFragmentsResponse, MapFile, MapFileResponse
-
-
-def _locked(method):
-    """Runs a callback under the node's lock (rospy calls each callback on its own thread)."""
-    @functools.wraps(method)
-    def wrapper(self, *args):
-        with self.lock:
-            return method(self, *args)
-    return wrapper
+from sparse_nav.ros.params import locked, read_fields
 
 
 def _config_from_params():
     cfg = CartographerConfig()
-    for field in ("map_dir", "save_period_s", "merge_voxel_m", "max_points"):
-        setattr(cfg, field, type(getattr(cfg, field))(rospy.get_param("~" + field,
-                                                                       getattr(cfg, field))))
+    read_fields(cfg, ("map_dir", "save_period_s", "merge_voxel_m", "max_points"))
     cfg.frame = rospy.get_param("~map_frame", cfg.frame)
     cfg.validate()
     return cfg
@@ -76,7 +65,7 @@ class CartographerNode:
             rospy.logerr_throttle(5.0, f"cartographer: saving failed: {exc}")
             return None
 
-    @_locked
+    @locked
     def _on_state(self, msg):
         events = self._guarded_save(self.carto.on_slam_state, msg.state, msg.map_index,
                                     msg.header.stamp.to_sec())
@@ -84,7 +73,7 @@ class CartographerNode:
             self.last_event = event
             rospy.loginfo("cartographer: %s", event)
 
-    @_locked
+    @locked
     def _on_cloud(self, msg):
         if msg.header.frame_id != self.carto.cfg.frame:
             self._bad_input(f"cloud/filtered in frame {msg.header.frame_id!r}, expected "
@@ -95,15 +84,15 @@ class CartographerNode:
         except (CloudError, FragmentError) as exc:
             self._bad_input(f"cloud/filtered: {exc}")
 
-    @_locked
+    @locked
     def _on_timer(self, _event):
         self._guarded_save(self.carto.save_due, rospy.Time.now().to_sec())
 
-    @_locked
+    @locked
     def _on_shutdown(self):
         self._guarded_save(self.carto.flush, rospy.Time.now().to_sec())
 
-    @_locked
+    @locked
     def _on_save(self, req):
         try:
             n = self.carto.save_as(req.name, rospy.Time.now().to_sec())
@@ -111,7 +100,7 @@ class CartographerNode:
             return MapFileResponse(success=False, message=str(exc))
         return MapFileResponse(success=True, message=f"saved {n} points as {req.name!r}")
 
-    @_locked
+    @locked
     def _on_load(self, req):
         try:
             points, meta = self.carto.load(req.name)
@@ -124,7 +113,7 @@ class CartographerNode:
                                                      f"{req.name!r}, published on "
                                                      "cartographer/fragment")
 
-    @_locked
+    @locked
     def _on_list(self, _req):
         try:
             listing = self.carto.list()
@@ -137,7 +126,7 @@ class CartographerNode:
             errors=[error for _, _, error in listing], success=True,
             message=f"{len(listing)} fragments in {self.carto.store.map_dir}, {refused} refused")
 
-    @_locked
+    @locked
     def _on_diagnostics(self, _event):
         current = self.carto.current
         status = DiagnosticStatus()

@@ -1,5 +1,6 @@
 """conductor: runs the escape mission by feeding the ROS-free Conductor and carrying out its
 actions (scans here, goals through the navigator's MoveBase action, the exit finder's service)."""
+import dataclasses
 import math
 import threading
 
@@ -19,6 +20,7 @@ from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observ
 from sparse_nav.conductor.grid_queries import GridView
 from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
+from sparse_nav.ros.params import read_fields
 from sparse_nav.ros.robot_io import StepExecutor, TelloClient
 from sparse_nav.scanning import (InitialScanConfig, Step, WallScanConfig, initial_scan,
                                  random_scan, sway, wall_scan)
@@ -32,10 +34,7 @@ _NAVIGATOR_STATES = {GoalStatus.PENDING: "planning", GoalStatus.ACTIVE: "followi
 
 def _dataclass_params(prefix, cls):
     """A config dataclass filled from private parameters named like its fields."""
-    config = cls()
-    for name, default in vars(cls()).items():
-        value = rospy.get_param(f"~{prefix}{name}", default)
-        setattr(config, name, type(default)(value))
+    config = read_fields(cls(), [f.name for f in dataclasses.fields(cls)], "~" + prefix)
     config.validate()
     return config
 

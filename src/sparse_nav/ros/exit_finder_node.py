@@ -25,6 +25,7 @@ from sparse_nav.exit_finder import (DEFAULT_METHOD, METHODS, ExitFinderConfig, E
 from sparse_nav.msg import ExitCandidates, Features
 from sparse_nav.ros.conversions import CloudError, cloud_to_points, transform_to_matrix
 from sparse_nav.srv import FindExit, FindExitResponse
+from sparse_nav.ros.params import read_fields
 
 VIEWPOINTS = ("origin", "robot", "estimate", "centroid")
 _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
@@ -33,9 +34,7 @@ _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
 
 def _config_from_params():
     cfg = ExitFinderConfig()
-    for field in ("min_points", "gap_max_exits", "seed"):
-        setattr(cfg, field, type(getattr(cfg, field))(rospy.get_param("~" + field,
-                                                                       getattr(cfg, field))))
+    read_fields(cfg, ("min_points", "gap_max_exits", "seed"))
     return cfg.validate()
 
 

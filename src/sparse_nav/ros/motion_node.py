@@ -20,6 +20,7 @@ from sparse_nav.motion import (FAILED, STATE_NAMES, STOPPED_LOST, STOPPED_STALE,
 from sparse_nav.msg import MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.robot_io import TelloClient
+from sparse_nav.ros.params import read_fields
 
 _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
               tf2_ros.ExtrapolationException)
@@ -27,15 +28,13 @@ _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
 
 def _config_from_params():
     cfg = MotionConfig()
-    for field in ("robot", "lookahead_m", "goal_tolerance_m", "max_linear_m_s", "min_linear_m_s",
-                  "max_angular_rad_s", "angular_gain", "turn_in_place_deg", "slow_down_m",
-                  "drone_goal_tolerance_m", "drone_max_step_cm", "drone_min_turn_deg",
-                  "pose_timeout_s", "map_timeout_s", "path_timeout_s", "tracked_timeout_s",
-                  "wall_min_tracked_points", "wall_max_fails", "wall_speed_m_s", "wall_step_cm",
-                  "wall_back_off_m", "wall_max_distance_m", "stall_fraction",
-                  "stall_timeout_s"):
-        setattr(cfg, field, type(getattr(cfg, field))(rospy.get_param("~" + field,
-                                                                       getattr(cfg, field))))
+    read_fields(cfg, ("robot", "lookahead_m", "goal_tolerance_m", "max_linear_m_s",
+                      "min_linear_m_s", "max_angular_rad_s", "angular_gain", "turn_in_place_deg", "slow_down_m",
+                      "drone_goal_tolerance_m", "drone_max_step_cm", "drone_min_turn_deg",
+                      "pose_timeout_s", "map_timeout_s", "path_timeout_s", "tracked_timeout_s",
+                      "wall_min_tracked_points", "wall_max_fails", "wall_speed_m_s", "wall_step_cm",
+                      "wall_back_off_m", "wall_max_distance_m", "stall_fraction",
+                      "stall_timeout_s"))
     cfg.validate()
     return cfg
 

@@ -1,5 +1,4 @@
 """navigator: rospy glue around the ROS-free Navigator core (seed 004's D* Lite navigator)."""
-import functools
 import math
 import threading
 
@@ -19,27 +18,17 @@ from sparse_nav.navigation.maps import GridGeometry
 from sparse_nav.navigation.navigator import (NO_PATH, REACHED, REJECTED, Navigator,
                                              NavigatorConfig, NavigatorInputError, Status)
 from sparse_nav.ros.conversions import pose_to_matrix, transform_to_matrix
+from sparse_nav.ros.params import locked, read_fields
 
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
              tf2_ros.ExtrapolationException, tf2_ros.InvalidArgumentException)
 
 
-def _locked(method):
-    """Runs a callback under the node's lock (rospy calls each subscriber on its own thread)."""
-    @functools.wraps(method)
-    def wrapper(self, *args):
-        with self.lock:
-            return method(self, *args)
-    return wrapper
-
-
 def _config_from_params():
     cfg = NavigatorConfig()
-    for field in ("robot_radius_m", "unknown_policy", "unknown_cost", "occupied_threshold",
-                  "viewing_range_m", "goal_tolerance_m", "goal_search_radius_m",
-                  "replan_improvement_m", "max_deviation_m", "smooth_path", "max_cells"):
-        setattr(cfg, field, type(getattr(cfg, field))(rospy.get_param("~" + field,
-                                                                       getattr(cfg, field))))
+    read_fields(cfg, ("robot_radius_m", "unknown_policy", "unknown_cost", "occupied_threshold",
+                      "viewing_range_m", "goal_tolerance_m", "goal_search_radius_m",
+                      "replan_improvement_m", "max_deviation_m", "smooth_path", "max_cells"))
     cfg.validate()
     return cfg
 
@@ -99,7 +88,7 @@ class NavigatorNode:
         rospy.logerr_throttle(2.0, f"navigator: {what}")
         self._publish(Status(REJECTED, what))
 
-    @_locked
+    @locked
     def _on_map(self, msg):
         try:
             if msg.header.frame_id not in ("", self.map_frame):
@@ -120,7 +109,7 @@ class NavigatorNode:
         self.input_error = ""
         self._step()
 
-    @_locked
+    @locked
     def _on_map_update(self, msg):
         if self.nav.geometry is None:
             # Before the first map (or right after a new SLAM map) an update has nothing to patch;
@@ -170,7 +159,7 @@ class NavigatorNode:
         self._step()
         return True
 
-    @_locked
+    @locked
     def _on_simple_goal(self, msg):
         if self.action.is_active():
             self.action.set_preempted(MoveBaseResult(), "replaced by move_base_simple/goal")
@@ -195,7 +184,7 @@ class NavigatorNode:
             self.nav.cancel()
             self.action.set_preempted(MoveBaseResult(), "cancelled")
 
-    @_locked
+    @locked
     def _on_slam_state(self, msg):
         index_changed = self.slam_map_index is not None and msg.map_index != self.slam_map_index
         previous = self.slam_state
@@ -222,7 +211,7 @@ class NavigatorNode:
         except NavigatorInputError as exc:
             rospy.logerr_throttle(5.0, f"navigator: {exc}")
 
-    @_locked
+    @locked
     def _on_timer(self, _event):
         self._action_inputs()
         self._step()
@@ -291,7 +280,7 @@ class NavigatorNode:
             poses.append(p)
         return poses
 
-    @_locked
+    @locked
     def _on_make_plan(self, req):
         response = GetPlanResponse()
         response.plan.header.frame_id = self.map_frame
@@ -314,7 +303,7 @@ class NavigatorNode:
         response.plan.poses = self._poses(points, response.plan.header.stamp)
         return response
 
-    @_locked
+    @locked
     def _on_diagnostics(self, _event):
         status = self.last_status
         diag = DiagnosticStatus()

@@ -1,5 +1,4 @@
 """slam_bridge: REP-105 TF, SLAM health and metric scale from an ORB-SLAM3 wrapper's topics."""
-import functools
 import threading
 
 import numpy as np
@@ -17,23 +16,13 @@ from sparse_nav.ros.conversions import (CloudError, cloud_to_points, matrix_to_t
 from sparse_nav.slam_bridge import (LOST, NEW_MAP, OK, STATE_NAMES, BridgeConfig, DroneMoveScale,
                                     MapAnchors, ScaleEstimator, StateTracker)
 from sparse_nav.transforms import invert
-
-
-def _locked(method):
-    """Runs a callback under the node's lock (rospy calls each subscriber on its own thread)."""
-    @functools.wraps(method)
-    def wrapper(self, *args):
-        with self.lock:
-            return method(self, *args)
-    return wrapper
+from sparse_nav.ros.params import locked, read_fields
 
 
 def _config_from_params():
     cfg = BridgeConfig()
-    for field in ("pose_timeout_s", "min_tracked_points", "relocalise_tolerance_m",
-                  "jump_threshold_m"):
-        setattr(cfg, field, type(getattr(cfg, field))(rospy.get_param("~" + field,
-                                                                       getattr(cfg, field))))
+    read_fields(cfg, ("pose_timeout_s", "min_tracked_points", "relocalise_tolerance_m",
+                      "jump_threshold_m"))
     cfg.validate()
     return cfg
 
@@ -185,7 +174,7 @@ class SlamBridgeNode:
             return
         self.t_map_odom = self.t_map_base @ invert(transform_to_matrix(tf.transform))
 
-    @_locked
+    @locked
     def _on_all_points(self, msg):
         try:
             points = cloud_to_points(msg)
@@ -210,7 +199,7 @@ class SlamBridgeNode:
         header.frame_id = self.map_frame
         self.points_pub.publish(points_to_cloud(metric, header))
 
-    @_locked
+    @locked
     def _on_odom(self, msg):
         p = msg.pose.pose.position
         odom_position = np.array([p.x, p.y, p.z])
@@ -229,7 +218,7 @@ class SlamBridgeNode:
             self.last_odom_position = odom_position
             self._odom_slam_start = self.last_slam_position.copy()
 
-    @_locked
+    @locked
     def _on_floor(self, msg):
         """The camera's measured height above the floor against its known height gives the scale."""
         anchor = self.anchors.current
@@ -245,11 +234,11 @@ class SlamBridgeNode:
     def _current_slam_position(self):
         return self.last_slam_position if self.state == OK else None
 
-    @_locked
+    @locked
     def _on_drone_command(self, msg):
         self.drone_moves.on_command(msg.data, self._current_slam_position())
 
-    @_locked
+    @locked
     def _on_drone_response(self, msg):
         sample = self.drone_moves.on_response(msg.data, self._current_slam_position())
         if sample is not None and self.scale.add(*sample):

@@ -196,6 +196,24 @@ def test_a_failing_motion_layer_counts_like_a_navigator_failure():
     assert m.conductor.reason == "motion failed 1 times"
 
 
+def test_an_unreachable_exit_gives_way_to_the_next_candidate():
+    m = Mission(ConductorConfig(goal_failure_grace_s=2.0, max_goal_failures=1))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 4.0), (3.0, 3.0)))
+    m.tick(navigator_state="reached")
+    assert m.conductor.phase == Phase.PASS_THROUGH
+    m.tick(navigator_state="no_path")
+    actions = m.tick(dt=3.0)  # the pass-through fails: the exit was wrong after all
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (0.0, 4.0))]
+    assert m.conductor.phase == Phase.GO_TO_EXIT and "next candidate" in m.conductor.reason
+    m.tick(navigator_state="goal_in_obstacle")
+    actions = m.tick(dt=3.0)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (3.0, 3.0))]
+    m.tick(navigator_state="no_path")
+    assert kinds(m.tick(dt=3.0)) == [ActionKind.FIND_EXIT]  # no candidate left: ask again
+
+
 def test_stop_and_return_to_start():
     m = Mission(ConductorConfig(wall_scan_enabled=False))
     m.tick(start_requested=True, robot_xy=(1.0, 2.0))

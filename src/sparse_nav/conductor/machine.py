@@ -66,6 +66,7 @@ class Observation:
     scan_running: bool = False
     scan_failed: bool = False            # the last scan ended with too many soft fails
     exit_xy: Optional[Tuple[float, float]] = None  # the newest answer of the exit finder
+    exit_alternatives: Tuple = ()        # its further candidates, best first
     exit_answered: bool = False          # the exit finder answered since the last request
     navigator_state: str = ""            # navigator/status state name, lower case
     motion_failed: bool = False          # the motion layer gave up (blocked, refused commands)
@@ -125,6 +126,7 @@ class Conductor:
         self.history: List[Transition] = []
         self.start_xy: Optional[Tuple[float, float]] = None
         self.exit_xy: Optional[Tuple[float, float]] = None
+        self._alternatives: List[Tuple[float, float]] = []
         self.goal_xy: Optional[Tuple[float, float]] = None
         self._resume_state = State.IDLE
         self._scan_rounds = 0
@@ -272,6 +274,7 @@ class Conductor:
         cfg = self.config
         if obs.exit_answered and obs.exit_xy is not None:
             self.exit_xy = tuple(obs.exit_xy)
+            self._alternatives = [tuple(xy) for xy in obs.exit_alternatives]
             return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
                                   f"exit found at ({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
         timed_out = t - self._exit_requested_s > cfg.exit_answer_timeout_s
@@ -310,7 +313,15 @@ class Conductor:
                 self._goal_failures += 1
                 self._failure_since_s = None
                 if self._goal_failures >= cfg.max_goal_failures:
-                    if self.phase == Phase.GO_TO_EXIT and self._exit_attempts < cfg.max_exit_attempts:
+                    leaving = self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH)
+                    if leaving and self._alternatives:
+                        # The finder ranks several exits: an unreachable one is likely wrong.
+                        failed, self.exit_xy = self.exit_xy, self._alternatives.pop(0)
+                        return self._navigate(
+                            t, Phase.GO_TO_EXIT, self.exit_xy,
+                            f"{failure} at the exit ({failed[0]:.2f}, {failed[1]:.2f}): next "
+                            f"candidate ({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
+                    if leaving and self._exit_attempts < cfg.max_exit_attempts:
                         return self._ask_exit(t, f"{failure} on the way to the exit; "
                                               "look for it again")
                     return self._give_up(t, f"{failure} {self._goal_failures} times")

@@ -194,13 +194,13 @@ class ConductorNode:
 
     def _ask_exit(self):
         def call():
-            answer = None
+            answer, alternatives = None, ()
             try:
                 rospy.wait_for_service(self.exit_service, timeout=10.0)
                 response = rospy.ServiceProxy(self.exit_service, FindExit)(method="")
                 if response.success and response.candidates.exits:
-                    best = response.candidates.exits[0]
-                    answer = (best.x, best.y)
+                    ranked = [(p.x, p.y) for p in response.candidates.exits]
+                    answer, alternatives = ranked[0], tuple(ranked[1:])
                 rospy.loginfo("conductor: exit finder: %s (%s)", response.candidates.status,
                               response.candidates.reason)
             except (rospy.ROSException, rospy.ServiceException) as exc:
@@ -208,6 +208,7 @@ class ConductorNode:
                 return  # no answer: the conductor's timeout decides
             with self.lock:
                 self.obs.exit_xy = answer
+                self.obs.exit_alternatives = alternatives
                 self.obs.exit_answered = True
         self.exit_thread = threading.Thread(target=call, daemon=True)
         self.exit_thread.start()

@@ -9,6 +9,16 @@ import sys
 import xml.etree.ElementTree as ET
 
 
+def _reason(problem, max_chars=600):
+    """The failure's message and the end of its text (where the assertion is), for the CI log."""
+    text = " ".join(filter(None, [problem.get("message", ""), problem.text or ""]))
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    if not lines:
+        return ""
+    tail = " | ".join(lines[-4:])
+    return "\n    " + (tail if len(tail) <= max_chars else "..." + tail[-max_chars:])
+
+
 def collect(results_dir):
     passed, failed, skipped, broken = [], [], [], []
     for dirpath, _, files in os.walk(results_dir):
@@ -30,8 +40,11 @@ def collect(results_dir):
             for case in cases:
                 found = True
                 label = f"{name}: {case.get('classname', '')}.{case.get('name', '')}"
-                if case.find("failure") is not None or case.find("error") is not None:
-                    failed.append(label)
+                problem = case.find("failure")
+                if problem is None:
+                    problem = case.find("error")
+                if problem is not None:
+                    failed.append(f"{label}{_reason(problem)}")
                 elif harness:
                     continue
                 elif case.find("skipped") is not None:

@@ -28,3 +28,12 @@ def test_unreadable_file_is_a_failure(tmp_path):
 def test_suite_error_without_cases_is_a_failure(tmp_path):
     (tmp_path / "rostest-y.xml").write_text('<testsuite tests="1" errors="1" failures="0"/>')
     assert junit_summary.collect(str(tmp_path))[1]
+
+
+def test_failure_line_carries_the_assertion_message(tmp_path):
+    (tmp_path / "rosunit-z.xml").write_text(
+        '<testsuite tests="1"><testcase classname="T" name="c">'
+        '<failure message="">Traceback\n  File x\nAssertionError: 0.49 not greater than 0.7'
+        '</failure></testcase></testsuite>')
+    failed = junit_summary.collect(str(tmp_path))[1]
+    assert len(failed) == 1 and "0.49 not greater than 0.7" in failed[0]

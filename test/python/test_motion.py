@@ -370,6 +370,27 @@ def test_blocked_robot_stops_until_a_different_path():
     assert c.step(t).state == FOLLOWING
 
 
+def test_blocked_robot_ignores_a_republished_path_that_starts_at_its_jittering_pose():
+    c = MotionController(MotionConfig(stall_timeout_s=3.0, stall_fraction=0.3))
+    rng = np.random.default_rng(3)
+    t, dt = 0.0, 0.1
+    states = []
+    while t < 8.0:
+        # Blocked from the start; the navigator republishes the path from the robot's pose,
+        # which SLAM jitters by millimetres.
+        x, y = rng.normal(0.0, 0.005, 2)
+        c.set_pose(x, y, 0.0, t, t)
+        c.set_path([[x, y], [1.0, 0.5], [3.0, 0.5]], t, t)
+        d = c.step(t)
+        states.append(d.state)
+        t += dt
+        c.follow_moved(d.linear_m_s * dt, 0.0, t)
+    assert states[0] == FOLLOWING and states[-1] == FAILED
+    assert states[states.index(FAILED):] == [FAILED] * (len(states) - states.index(FAILED))
+    c.set_path([[0.0, 0.0], [1.0, -0.5], [3.0, 0.5]], t, t)   # another route: it tries again
+    assert c.step(t).state == FOLLOWING
+
+
 def test_turning_creep_against_a_wall_is_not_a_stall():
     c = MotionController(MotionConfig(stall_timeout_s=1.0))
     c.set_path([[0, 0], [-2, 0]], 0.0, 0.0)         # behind the robot: it turns with the creep

@@ -9,6 +9,8 @@ import collections
 import dataclasses
 import math
 
+import numpy as np
+
 from sparse_nav.motion.primitive import PathFollower
 
 IDLE, FOLLOWING, REACHED, STOPPED_STALE, STOPPED_LOST, WALL_SEEKING, WALL_REACHED, FAILED = range(8)
@@ -51,6 +53,8 @@ class MotionConfig:
     #                                    distance (wheel odometry) is a stall: pushing on something
     stall_timeout_s: float = 3.0       # following: less than stall_fraction of the commanded
     #                                    distance over this window means blocked: stop
+    route_tolerance_m: float = 0.1     # a blocked robot waits for a path whose route (after its
+    #                                    first point, the robot) leaves the old one by more
 
     def validate(self):
         if self.robot not in ("ground", "drone"):
@@ -86,6 +90,8 @@ class MotionConfig:
             raise ValueError("stall_fraction must be in [0, 1)")
         if not self.stall_timeout_s > 0:
             raise ValueError("stall_timeout_s must be > 0")
+        if not (math.isfinite(self.route_tolerance_m) and self.route_tolerance_m >= 0):
+            raise ValueError("route_tolerance_m must be finite and >= 0")
 
 
 class StalenessGuard:
@@ -263,7 +269,10 @@ class MotionController:
         if stamp_s < self.map_switch_s:
             raise ValueError(f"path planned at {stamp_s:.2f} s, before the SLAM map switch at "
                              f"{self.map_switch_s:.2f} s")
-        if self.follower.set_path(points):
+        before = self.follower.points
+        tolerance = self.cfg.route_tolerance_m
+        if self.follower.set_path(points) and not _same_route(before, self.follower.points,
+                                                               tolerance):
             self._unblock()
         self.guard.mark("path", now_s)
         self.mode = "path"
@@ -401,3 +410,23 @@ class MotionController:
             return decision
         # The outcome stays until a new path, go-to-wall or stop, so nobody misses it.
         return Decision(WALL_REACHED if wall.success else FAILED, wall.reason)
+
+
+def _same_route(old, new, tolerance_m):
+    """True when every point of ``new`` after its first lies within tolerance_m of the polyline
+    ``old`` and both end together. The navigator starts each path at the robot, so a blocked
+    robot's republished path differs in its first point (pose jitter) but follows the same route."""
+    if old is None or new is None or len(new) < 2:
+        return False
+    if np.hypot(*(new[-1] - old[-1])) > tolerance_m:
+        return False
+    pts = new[1:]
+    if len(old) < 2:
+        return bool(np.all(np.hypot(*(pts - old[0]).T) <= tolerance_m))
+    a, b = old[:-1], old[1:]
+    ab = b - a
+    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
+    t = np.clip(np.einsum("kij,ij->ki", pts[:, None, :] - a[None], ab) / length2, 0.0, 1.0)
+    nearest = a[None] + t[..., None] * ab[None]
+    dist = np.hypot(*(pts[:, None, :] - nearest).transpose(2, 0, 1)).min(axis=1)
+    return bool(np.all(dist <= tolerance_m))

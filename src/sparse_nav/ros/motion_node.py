@@ -34,7 +34,7 @@ def _config_from_params():
                       "pose_timeout_s", "map_timeout_s", "path_timeout_s", "tracked_timeout_s",
                       "wall_min_tracked_points", "wall_max_fails", "wall_speed_m_s", "wall_step_cm",
                       "wall_back_off_m", "wall_max_distance_m", "stall_fraction",
-                      "stall_timeout_s"))
+                      "stall_timeout_s", "route_tolerance_m"))
     cfg.validate()
     return cfg
 

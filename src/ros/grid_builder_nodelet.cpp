@@ -28,6 +28,7 @@ void GridBuilderNodelet::onInit()
   loadParam(pnh, "camera_frame", camera_frame_);
   loadParam(pnh, "trajectory_spacing_m", trajectory_spacing_m_);
   loadParam(pnh, "max_rays", max_rays_);
+  loadParam(pnh, "reset_on_map_switch", reset_on_map_switch_);
   config_.validate();
   if (!(trajectory_spacing_m_ > 0.0) || max_rays_ == 0)
     throw std::invalid_argument("trajectory_spacing_m and max_rays must be > 0");
@@ -42,6 +43,17 @@ void GridBuilderNodelet::onInit()
   reset_srv_ = pnh.advertiseService("reset", &GridBuilderNodelet::onReset, this);
   floor_sub_ = nh.subscribe("cloud/floor", 2, &GridBuilderNodelet::onFloor, this);
   obstacles_sub_ = nh.subscribe("cloud/obstacles", 2, &GridBuilderNodelet::onObstacles, this);
+  state_sub_ = nh.subscribe("slam/state", 20, &GridBuilderNodelet::onSlamState, this);
+}
+
+void GridBuilderNodelet::onSlamState(const SlamStateConstPtr& msg)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!map_switch_.switched(msg->map_index) || !reset_on_map_switch_)
+    return;
+  // Camera positions and cells of the old map are in another anchoring: the grid starts afresh.
+  resetLocked();
+  NODELET_INFO("grid_builder: SLAM map %u, grid starts afresh", msg->map_index);
 }
 
 void GridBuilderNodelet::diagnose(bool ok, const std::string& message)
@@ -210,11 +222,16 @@ void GridBuilderNodelet::publishShapes(const std_msgs::Header& header)
 bool GridBuilderNodelet::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res)
 {
   std::lock_guard<std::mutex> lock(mutex_);
-  builder_->reset();
-  trajectory_.clear();
-  floor_points_.clear();
+  resetLocked();
   res.success = true;
   res.message = "grid cleared";
   return true;
+}
+
+void GridBuilderNodelet::resetLocked()
+{
+  builder_->reset();
+  trajectory_.clear();
+  floor_points_.clear();
 }
 }  // namespace sparse_nav

@@ -66,6 +66,7 @@ void GroundMapperNodelet::onInit()
   if (map_dir_.rfind("~/", 0) == 0)
     map_dir_ = std::string(home ? home : "/tmp") + map_dir_.substr(1);
   loadParam(pnh, "markers_period_s", markers_period_s_);
+  loadParam(pnh, "reset_on_map_switch", reset_on_map_switch_);
   config.validate();
 
   mapper_.reset(new GroundMapper(config));
@@ -81,6 +82,18 @@ void GroundMapperNodelet::onInit()
   load_srv_ = pnh.advertiseService("load", &GroundMapperNodelet::onLoad, this);
   reset_srv_ = pnh.advertiseService("reset", &GroundMapperNodelet::onReset, this);
   sub_ = nh.subscribe("cloud/filtered", 2, &GroundMapperNodelet::onCloud, this);
+  state_sub_ = nh.subscribe("slam/state", 20, &GroundMapperNodelet::onSlamState, this);
+}
+
+void GroundMapperNodelet::onSlamState(const SlamStateConstPtr& msg)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!map_switch_.switched(msg->map_index) || !reset_on_map_switch_)
+    return;
+  // The old map's points sit in another anchoring; mixing them in would double the walls.
+  mapper_->reset();
+  has_camera_ = false;
+  NODELET_INFO("ground_mapper: SLAM map %u, octree and floor start afresh", msg->map_index);
 }
 
 bool GroundMapperNodelet::cameraPosition(const ros::Time& stamp, Eigen::Vector3d& position)

@@ -13,7 +13,9 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
+#include "sparse_nav/SlamState.h"
 #include "sparse_nav/core/grid_builder.h"
+#include "sparse_nav/ros/node_utils.h"
 
 namespace sparse_nav
 {
@@ -24,7 +26,8 @@ namespace sparse_nav
  * Subscribes `cloud/obstacles` and `cloud/floor` (map frame) and TF map -> camera; publishes
  * `map` (nav_msgs/OccupancyGrid, latched), `map_updates` (map_msgs/OccupancyGridUpdate, only the
  * changed window), `grid_builder/alpha_shapes` (visualization_msgs/Marker) and `/diagnostics`;
- * service `~reset` (std_srvs/Trigger).
+ * service `~reset` (std_srvs/Trigger). Subscribes `slam/state` to start afresh when the SLAM map
+ * changes.
  */
 class GridBuilderNodelet : public nodelet::Nodelet
 {
@@ -34,6 +37,8 @@ public:
 private:
   void onObstacles(const sensor_msgs::PointCloud2ConstPtr& msg);
   void onFloor(const sensor_msgs::PointCloud2ConstPtr& msg);
+  void onSlamState(const SlamStateConstPtr& msg);
+  void resetLocked();
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   void rememberCamera(const ros::Time& stamp);
   void publishShapes(const std_msgs::Header& header);
@@ -42,6 +47,8 @@ private:
   GridBuilderConfig config_;
   std::string map_frame_ = "map";
   std::string camera_frame_ = "camera_optical";
+  bool reset_on_map_switch_ = true;
+  MapSwitchDetector map_switch_;
   double trajectory_spacing_m_ = 0.25;  ///< a camera position is kept when this far from the last kept one
   std::size_t max_rays_ = 200000;       ///< rays per update at most (every k-th point beyond)
 
@@ -54,7 +61,7 @@ private:
 
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
-  ros::Subscriber obstacles_sub_, floor_sub_;
+  ros::Subscriber obstacles_sub_, floor_sub_, state_sub_;
   ros::Publisher map_pub_, update_pub_, shapes_pub_, diag_pub_;
   ros::ServiceServer reset_srv_;
   std::mutex mutex_;

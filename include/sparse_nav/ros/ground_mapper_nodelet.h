@@ -13,7 +13,9 @@
 #include <tf2_ros/transform_listener.h>
 
 #include "sparse_nav/MapFile.h"
+#include "sparse_nav/SlamState.h"
 #include "sparse_nav/core/ground_mapper.h"
+#include "sparse_nav/ros/node_utils.h"
 
 namespace sparse_nav
 {
@@ -25,7 +27,7 @@ namespace sparse_nav
  * Subscribes `cloud/filtered` (map frame, metres) and TF map -> camera; publishes
  * `cloud/obstacles` and `cloud/floor` (map frame), `floor_plane` (sparse_nav/FloorEstimate),
  * `ground_mapper/floor_marker` and `ground_mapper/occupied_voxels` (visualization_msgs), and
- * `/diagnostics`. Services `~save` / `~load` (sparse_nav/MapFile: a name in map_dir, .bt) and
+ * `/diagnostics`. Subscribes `slam/state` to start afresh when the SLAM map changes. Services `~save` / `~load` (sparse_nav/MapFile: a name in map_dir, .bt) and
  * `~reset` (std_srvs/Trigger).
  */
 class GroundMapperNodelet : public nodelet::Nodelet
@@ -35,6 +37,7 @@ public:
 
 private:
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& msg);
+  void onSlamState(const SlamStateConstPtr& msg);
   bool onSave(MapFile::Request& req, MapFile::Response& res);
   bool onLoad(MapFile::Request& req, MapFile::Response& res);
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
@@ -47,6 +50,8 @@ private:
   std::string camera_frame_ = "camera_optical";
   std::string map_dir_;
   double markers_period_s_ = 1.0;
+  bool reset_on_map_switch_ = true;
+  MapSwitchDetector map_switch_;
 
   std::unique_ptr<GroundMapper> mapper_;
   Eigen::Vector3d last_camera_ = Eigen::Vector3d::Zero();
@@ -57,7 +62,7 @@ private:
 
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
-  ros::Subscriber sub_;
+  ros::Subscriber sub_, state_sub_;
   ros::Publisher obstacles_pub_, floor_points_pub_, plane_pub_, floor_marker_pub_, voxels_pub_, diag_pub_;
   ros::ServiceServer save_srv_, load_srv_, reset_srv_;
   std::mutex mutex_;

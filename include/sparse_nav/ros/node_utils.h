@@ -1,6 +1,7 @@
 #ifndef SPARSE_NAV_ROS_NODE_UTILS_H
 #define SPARSE_NAV_ROS_NODE_UTILS_H
 
+#include <cstdint>
 #include <map>
 #include <string>
 
@@ -31,6 +32,28 @@ void publishDiagnostics(ros::Publisher& pub, const std::string& name, bool ok, c
  */
 bool lookupOrigin(const tf2_ros::Buffer& buffer, const std::string& fixed_frame, const std::string& frame,
                   const ros::Time& stamp, Eigen::Vector3d& origin, std::string* error);
+
+/**
+ * @brief Tells when the SLAM map changes: a new map after a loss, or a merge back into an earlier
+ * one (slam/state's map_index changes). Points and camera positions from before then are in another
+ * map's anchoring, so maps built from them start afresh.
+ */
+class MapSwitchDetector
+{
+public:
+  /// @brief True when map_index differs from the previous call's (never on the first call).
+  bool switched(std::uint32_t map_index)
+  {
+    const bool changed = seen_ && map_index != index_;
+    seen_ = true;
+    index_ = map_index;
+    return changed;
+  }
+
+private:
+  bool seen_ = false;
+  std::uint32_t index_ = 0;
+};
 
 /// @brief True for a map file name: 1-64 letters, digits, '_' or '-' (never a path).
 bool isValidMapName(const std::string& name);

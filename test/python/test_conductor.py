@@ -84,6 +84,20 @@ def test_no_exit_scans_more_then_gives_up():
     assert "no exit in the map after 2 attempts" in m.conductor.reason
 
 
+def test_exits_without_a_way_out_on_the_map_scan_more_then_are_tried_last():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, max_exit_attempts=2))
+    m.tick(start_requested=True)
+    m.run_scan()
+    actions = m.tick(exit_answered=True, exit_xy=(1.0, 2.0), exit_leads_out=False)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
+    assert "no way out" in m.conductor.reason
+    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
+    # The last attempt: the best candidate is tried after all.
+    actions = m.tick(exit_answered=True, exit_xy=(1.0, 2.0), exit_leads_out=False)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (1.0, 2.0))]
+    assert m.conductor.phase == Phase.GO_TO_EXIT
+
+
 def test_a_silent_exit_finder_times_out():
     m = Mission(ConductorConfig(wall_scan_enabled=False, exit_answer_timeout_s=5.0, max_exit_attempts=1))
     m.tick(start_requested=True)

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from sparse_nav.conductor.grid_queries import GridView
+from sparse_nav.conductor.grid_queries import GridView, order_exits
 
 
 @pytest.fixture
@@ -29,3 +29,36 @@ def test_cells_and_obstacles(room):
     assert room.cell(2.5, 1.5) == -1 and not room.in_obstacle(2.5, 1.5)
     assert room.cell(-5.0, 0.0) is None
     assert room.free_cells_near(0.0, 0.0, 0.2) == 25
+
+
+@pytest.fixture
+def room_with_door():
+    # A 4 m x 4 m room at 0.1 m (x, y in [0, 4)), walls 0.2 m thick; a door in the north wall
+    # at x 2.5-3.5 with free space beyond it (rays through the door), unknown beyond the rest,
+    # and a box inside against the west wall at x 0.2-0.8, y 1.5-2.5.
+    cells = np.full((60, 40), -1, dtype=np.int8)
+    cells[:40, :] = 0
+    cells[:2, :] = cells[38:40, :] = 100
+    cells[:40, :2] = cells[:40, 38:] = 100
+    cells[38:40, 25:35] = 0
+    cells[40:55, 24:36] = 0
+    cells[15:25, 2:8] = 100
+    return GridView(cells, 0.1, (0.0, 0.0))
+
+
+def test_free_space_beyond_a_door_not_beyond_a_wall_or_a_box(room_with_door):
+    start = (2.0, 2.0)
+    assert room_with_door.free_share_beyond((3.0, 3.85), start, 0.3, 1.2) > 0.9
+    assert room_with_door.free_share_beyond((1.0, 3.85), start, 0.3, 1.2) == 0.0   # wall
+    assert room_with_door.free_share_beyond((0.9, 2.0), start, 0.3, 1.2) == 0.0    # box
+    assert room_with_door.free_share_beyond((2.0, 2.0), start, 0.3, 1.2) == 0.0    # no line
+
+
+def test_exits_with_free_space_beyond_go_first_in_the_finders_order(room_with_door):
+    ranked = [(0.9, 2.0), (1.0, 3.85), (3.0, 3.85), (3.1, 3.8)]
+    ordered, leads_out = order_exits(ranked, room_with_door, (2.0, 2.0), 0.3, 1.2, 0.3)
+    assert ordered == [(3.0, 3.85), (3.1, 3.8), (0.9, 2.0), (1.0, 3.85)] and leads_out
+    assert order_exits(ranked[:2], room_with_door, (2.0, 2.0), 0.3, 1.2, 0.3) == \
+        (ranked[:2], False)
+    assert order_exits(ranked, None, (2.0, 2.0), 0.3, 1.2, 0.3) == (ranked, True)
+    assert order_exits(ranked, room_with_door, None, 0.3, 1.2, 0.3) == (ranked, True)

@@ -1,5 +1,5 @@
 """What the conductor asks of the occupancy grid (ROS-free): free room along a bearing, the cell
-under the robot."""
+under the robot, and whether an exit candidate leads out of the room."""
 import dataclasses
 import math
 
@@ -45,3 +45,31 @@ class GridView:
         row = int(math.floor((y - self.origin_xy[1]) / self.resolution_m))
         window = self.cells[max(0, row - r):row + r + 1, max(0, col - r):col + r + 1]
         return int(np.count_nonzero(window == 0))
+
+    def free_share_beyond(self, exit_xy, from_xy, near_m, far_m, occupied_at=50):
+        """Share of the cells from near_m to far_m beyond exit_xy, on the line from from_xy
+        through it, that the map knows to be free. The map's free space comes from rays to the
+        points the camera saw, so it reaches beyond a door but not beyond a wall or a box."""
+        dx, dy = exit_xy[0] - from_xy[0], exit_xy[1] - from_xy[1]
+        norm = math.hypot(dx, dy)
+        if norm < 1e-9 or far_m <= near_m:
+            return 0.0
+        c, s = dx / norm, dy / norm
+        distances = np.arange(near_m, far_m + 1e-9, self.resolution_m / 2.0)
+        values = [self.cell(exit_xy[0] + d * c, exit_xy[1] + d * s) for d in distances]
+        free = sum(1 for v in values if v is not None and 0 <= v < occupied_at)
+        return free / len(values)
+
+
+def order_exits(candidates, grid, from_xy, near_m, far_m, min_free_share):
+    """(ordered, any_leads_out): the finder's ranked exits, those the map shows free space beyond
+    (free_share_beyond >= min_free_share) first, each group in the finder's order: a wall, a box
+    or furniture is not a way out, however door-like its outline. Without a grid or a start, the
+    finder's order, taken as leading out."""
+    if grid is None or from_xy is None:
+        return list(candidates), True
+    leads_out = [grid.free_share_beyond(c, from_xy, near_m, far_m) >= min_free_share
+                 for c in candidates]
+    ordered = [c for c, ok in zip(candidates, leads_out) if ok] + \
+        [c for c, ok in zip(candidates, leads_out) if not ok]
+    return ordered, any(leads_out)

@@ -68,6 +68,7 @@ class Observation:
     exit_xy: Optional[Tuple[float, float]] = None  # the newest answer of the exit finder
     exit_alternatives: Tuple = ()        # its further candidates, best first
     exit_answered: bool = False          # the exit finder answered since the last request
+    exit_leads_out: bool = True          # the map shows free space beyond exit_xy (a way out)
     navigator_state: str = ""            # navigator/status state name, lower case
     motion_failed: bool = False          # the motion layer gave up (blocked, refused commands)
     start_requested: bool = False
@@ -86,6 +87,9 @@ class ConductorConfig:
     max_goal_failures: int = 3           # navigator no_path/goal_in_obstacle answers per goal
     goal_failure_grace_s: float = 10.0   # a failure must last this long to count (replanning)
     pass_through_m: float = 1.5          # beyond the exit, away from the room
+    exit_check_near_m: float = 0.3       # the map is asked about free space this far beyond an
+    exit_check_far_m: float = 1.2        # ... exit candidate up to this far (m): candidates with
+    exit_min_free_share: float = 0.1     # at least this share free there go first
     reached_tolerance_m: float = 0.4     # the navigator's "reached" or this close counts
     lost_timeout_s: float = 60.0         # tracking lost longer than this: gave up
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
@@ -99,6 +103,11 @@ class ConductorConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
+        if not 0 <= self.exit_check_near_m < self.exit_check_far_m < math.inf:
+            raise ValueError("need 0 <= exit_check_near_m < exit_check_far_m (finite)")
+        if not 0 <= self.exit_min_free_share <= 1:
+            raise ValueError(f"exit_min_free_share must be in [0, 1], got "
+                             f"{self.exit_min_free_share}")
         if not (math.isfinite(self.pass_through_m) and self.pass_through_m >= 0):
             raise ValueError(f"pass_through_m must be finite and >= 0, got {self.pass_through_m}")
 
@@ -272,6 +281,13 @@ class Conductor:
 
     def _find_exit(self, t, obs):
         cfg = self.config
+        no_way_out = obs.exit_answered and obs.exit_xy is not None and not obs.exit_leads_out
+        if no_way_out and self._exit_attempts < cfg.max_exit_attempts:
+            # Every candidate has a wall or furniture behind it on the map: look from elsewhere
+            # before driving into it (on the last attempt the best candidate is tried).
+            self._set(t, State.START, Phase.WALL_SCAN, "the map shows no way out beyond the "
+                      "exits found: scan more")
+            return [self._scan("random")]
         if obs.exit_answered and obs.exit_xy is not None:
             self.exit_xy = tuple(obs.exit_xy)
             self._alternatives = [tuple(xy) for xy in obs.exit_alternatives]

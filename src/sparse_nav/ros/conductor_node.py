@@ -17,7 +17,7 @@ from std_srvs.srv import Trigger, TriggerResponse
 
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, ScanRunner,
                                   ScanRunnerConfig)
-from sparse_nav.conductor.grid_queries import GridView
+from sparse_nav.conductor.grid_queries import GridView, order_exits
 from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
@@ -194,13 +194,23 @@ class ConductorNode:
 
     def _ask_exit(self):
         def call():
-            answer, alternatives = None, ()
+            answer, alternatives, leads_out = None, (), True
             try:
                 rospy.wait_for_service(self.exit_service, timeout=10.0)
                 response = rospy.ServiceProxy(self.exit_service, FindExit)(method="")
                 if response.success and response.candidates.exits:
                     ranked = [(p.x, p.y) for p in response.candidates.exits]
-                    answer, alternatives = ranked[0], tuple(ranked[1:])
+                    cfg = self.config
+                    with self.lock:
+                        grid = self.grid
+                    ordered, leads_out = order_exits(ranked, grid, self.conductor.start_xy,
+                                                     cfg.exit_check_near_m, cfg.exit_check_far_m,
+                                                     cfg.exit_min_free_share)
+                    if ordered != ranked or not leads_out:
+                        rospy.loginfo("conductor: exits in order, free space beyond first: %s%s",
+                                      [(round(x, 2), round(y, 2)) for x, y in ordered],
+                                      "" if leads_out else " (none has free space beyond)")
+                    answer, alternatives = ordered[0], tuple(ordered[1:])
                 rospy.loginfo("conductor: exit finder: %s (%s)", response.candidates.status,
                               response.candidates.reason)
             except (rospy.ROSException, rospy.ServiceException) as exc:
@@ -209,6 +219,7 @@ class ConductorNode:
             with self.lock:
                 self.obs.exit_xy = answer
                 self.obs.exit_alternatives = alternatives
+                self.obs.exit_leads_out = leads_out
                 self.obs.exit_answered = True
         self.exit_thread = threading.Thread(target=call, daemon=True)
         self.exit_thread.start()

@@ -391,6 +391,19 @@ def test_blocked_robot_ignores_a_republished_path_that_starts_at_its_jittering_p
     assert c.step(t).state == FOLLOWING
 
 
+def test_a_drone_meeting_an_obstacle_on_its_path_stops_until_another_route():
+    c = MotionController(MotionConfig(robot="drone"))
+    c.set_pose(0.0, 0.0, 0.0, 0.0, 0.0)
+    c.set_path([[0.0, 0.0], [2.0, 0.0]], 0.0, 0.0)
+    assert c.step(0.0).state == FOLLOWING
+    c.path_blocked("Tello answered 'error: obstacle' to 'forward 100'")
+    c.set_path([[0.003, -0.002], [2.0, 0.0]], 0.1, 0.1)    # republished from the robot's pose
+    d = c.step(0.1)
+    assert d.state == FAILED and "obstacle" in d.reason and d.command is None
+    c.set_path([[0.0, 0.0], [1.0, 1.0], [2.0, 0.0]], 0.2, 0.2)
+    assert c.step(0.2).state == FOLLOWING
+
+
 def test_turning_creep_against_a_wall_is_not_a_stall():
     c = MotionController(MotionConfig(stall_timeout_s=1.0))
     c.set_path([[0, 0], [-2, 0]], 0.0, 0.0)         # behind the robot: it turns with the creep

@@ -289,6 +289,12 @@ class MotionController:
             self.idle_reason = f"SLAM map switched to {map_index}: waiting for a new path"
         self.map_index = map_index
 
+    def path_blocked(self, reason):
+        """Following a path, the robot met an obstacle the map does not show (a drone's "error:
+        obstacle"): it stops (FAILED) until a path with another route arrives."""
+        if self.mode == "path" and self.follower.points is not None:
+            self.blocked = f"blocked: {reason}; waiting for a different path"
+
     def follow_moved(self, commanded_m, measured_m, now_s):
         """Ground robot following a path: forward distance commanded since the last step and the
         distance the wheel odometry advanced (m). Less than stall_fraction of the commanded

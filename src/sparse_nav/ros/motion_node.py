@@ -233,6 +233,9 @@ class MotionNode:
                     self.ctl.wall_moved(_move_distance_m(command))
                 elif answer.startswith("error: obstacle"):
                     self.ctl.wall_blocked()
+            elif answer.startswith("error: obstacle"):
+                # Pushing on, the Tello repeated the move against a door jamb without end.
+                self.ctl.path_blocked(f"Tello answered {answer!r} to {command!r}")
             if answer == "ok":
                 self.failures = 0
                 return

@@ -4,7 +4,7 @@ import pytest
 
 from sparse_nav.slam_bridge import (LOST, NOT_INITIALIZED, OK, ORB_LOST, ORB_NOT_INITIALIZED,
                                     ORB_OK, BridgeConfig, DroneMoveScale, MapAnchors,
-                                    ScaleEstimator, StateTracker)
+                                    ScaleEstimator, StateTracker, odometry_camera_position)
 from sparse_nav.transforms import invert, make_transform, planar, yaw_of
 
 # A forward-looking camera 0.5 m up: optical z = base x, optical x = -base y, optical y = -base z.
@@ -145,3 +145,15 @@ def test_drone_moves_pair_with_responses_in_order():
 def test_config_validation():
     with pytest.raises(ValueError, match="pose_timeout_s"):
         BridgeConfig(pose_timeout_s=0).validate()
+
+
+def test_odometry_follows_the_camera_not_the_base():
+    # Turning on the spot by 90 deg moves the camera 0.1 m ahead of the axis by 0.14 m, while
+    # the base stays: SLAM sees the camera move, so the scale must compare camera positions.
+    half = np.sqrt(0.5)
+    before = odometry_camera_position((1.0, 2.0, 0.0), (0.0, 0.0, 0.0, 1.0), MOUNT)
+    after = odometry_camera_position((1.0, 2.0, 0.0), (0.0, 0.0, half, half), MOUNT)
+    assert before == pytest.approx([1.1, 2.0, 0.5])
+    assert after == pytest.approx([1.0, 2.1, 0.5])
+    assert np.linalg.norm(after - before) == pytest.approx(0.1 * np.sqrt(2.0))
+

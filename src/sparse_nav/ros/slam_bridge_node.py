@@ -14,7 +14,8 @@ from sparse_nav.msg import FloorEstimate, SlamScale, SlamState
 from sparse_nav.ros.conversions import (CloudError, cloud_to_points, matrix_to_transform_stamped,
                                         points_to_cloud, pose_to_matrix, transform_to_matrix)
 from sparse_nav.slam_bridge import (LOST, NEW_MAP, OK, STATE_NAMES, BridgeConfig, DroneMoveScale,
-                                    MapAnchors, ScaleEstimator, StateTracker)
+                                    MapAnchors, ScaleEstimator, StateTracker,
+                                    odometry_camera_position)
 from sparse_nav.transforms import invert
 from sparse_nav.ros.params import locked, read_fields
 
@@ -201,8 +202,9 @@ class SlamBridgeNode:
 
     @locked
     def _on_odom(self, msg):
-        p = msg.pose.pose.position
-        odom_position = np.array([p.x, p.y, p.z])
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        odom_position = odometry_camera_position((p.x, p.y, p.z), (q.x, q.y, q.z, q.w),
+                                                 self.t_base_cam)
         if self.state != OK or self.last_slam_position is None:
             self.last_odom_position = None
             return

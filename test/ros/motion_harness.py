@@ -57,18 +57,30 @@ class MotionHarness:
         """Drives the seed 000 initial scan until SLAM tracks with a measured scale."""
         end = rospy.Time.now().to_sec() + limit_s
         rate = rospy.Rate(20)
-        for v, w, duration in to_velocity_segments(initial_scan()):
+        turned = 0.0
+
+        def drive(v, w, duration):
             stop = rospy.Time.now() + rospy.Duration(duration)
             while rospy.Time.now() < stop and not rospy.is_shutdown():
                 cmd = Twist()
                 cmd.linear.x, cmd.angular.z = v, w
                 self.cmd_pub.publish(cmd)
                 rate.sleep()
+
+        for v, w, duration in to_velocity_segments(initial_scan()):
+            drive(v, w, duration)
             with self.lock:
                 ready = (self.slam_state is not None and self.slam_state.state == SlamState.OK
                          and self.scale is not None and self.scale.n_samples >= 3)
-            if (ready and v == 0.05) or rospy.Time.now().to_sec() > end:
-                break   # after a turn segment the robot is back where the iteration began
+            if v == 0.05:
+                turned += w * duration      # the iteration's turn, back where it began
+                if ready:
+                    break
+            if rospy.Time.now().to_sec() > end:
+                break
+        if turned:
+            # Face the start heading again: the first iteration mapped what lies ahead of it.
+            drive(0.05, -math.copysign(0.5, turned), abs(turned) / 0.5)
         self.cmd_pub.publish(Twist())
         rospy.sleep(1.0)
         return ready

@@ -15,8 +15,10 @@ def _reason(problem, max_chars=600):
     lines = [line.strip() for line in text.splitlines() if line.strip()]
     if not lines:
         return ""
-    tail = " | ".join(lines[-4:])
-    return "\n    " + (tail if len(tail) <= max_chars else "..." + tail[-max_chars:])
+    # rosunit writes the assertion first and the traceback after it; pytest the other way round.
+    first, last = lines[0], lines[-1]
+    text = first if first == last else f"{first} | ... | {last}"
+    return "\n    " + (text if len(text) <= max_chars else text[:max_chars] + "...")
 
 
 def collect(results_dir):

@@ -37,3 +37,12 @@ def test_failure_line_carries_the_assertion_message(tmp_path):
         '</failure></testcase></testsuite>')
     failed = junit_summary.collect(str(tmp_path))[1]
     assert len(failed) == 1 and "0.49 not greater than 0.7" in failed[0]
+
+
+def test_rosunit_failure_line_starts_with_the_assertion(tmp_path):
+    (tmp_path / "rosunit-w.xml").write_text(
+        '<testsuite tests="1"><testcase classname="T" name="d"><failure type="AssertionError">'
+        '6.5 not less than 0.75 : the door\n  File "x.py", line 1, in t\n    self.assertLess(a, b)'
+        '</failure></testcase></testsuite>')
+    failed = junit_summary.collect(str(tmp_path))[1]
+    assert len(failed) == 1 and "6.5 not less than 0.75" in failed[0]

@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""rostest: malformed clouds and map files leave the perception nodelets running with their map."""
+"""rostest: malformed clouds and map files leave the perception nodelets running with their map;
+a new SLAM map starts the octree afresh."""
 import os
 import threading
 import unittest
@@ -7,10 +8,12 @@ import unittest
 import numpy as np
 import rospy
 import rostest
+from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import OccupancyGrid
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
+from sparse_nav.msg import SlamState
 from sparse_nav.ros.conversions import points_to_cloud
 from sparse_nav.srv import MapFile
 
@@ -35,12 +38,21 @@ class PerceptionBadInputTest(unittest.TestCase):
         self.map_dir = rospy.get_param("~map_dir")
         self.lock = threading.Lock()
         self.maps = []
+        self.octree_leaves = []
         rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=5)
+        rospy.Subscriber("/diagnostics", DiagnosticArray, self._on_diagnostics, queue_size=20)
         self.pub = rospy.Publisher("slam/points", PointCloud2, queue_size=2, latch=True)
 
     def _on_map(self, msg):
         with self.lock:
             self.maps.append(msg)
+
+    def _on_diagnostics(self, msg):
+        for status in msg.status:
+            if status.name == "ground_mapper":
+                values = {kv.key: kv.value for kv in status.values}
+                with self.lock:
+                    self.octree_leaves.append(int(values["octree_leaves"]))
 
     def _publish(self, msg):
         msg.header.stamp = rospy.Time.now()
@@ -58,6 +70,28 @@ class PerceptionBadInputTest(unittest.TestCase):
                     return self.maps[-1]
             rospy.sleep(0.1)
         return None
+
+    def test_a_new_slam_map_starts_afresh(self):
+        """The old map's points sit in another anchoring: after a map switch the octree holds only
+        the new map's. Half the room after the switch gives fewer leaves than the whole room did,
+        where a kept octree would only have grown."""
+        rospy.wait_for_service("ground_mapper/load", 60.0)
+        state = rospy.Publisher("slam/state", SlamState, queue_size=5, latch=True)
+        state.publish(SlamState(state=SlamState.OK, map_index=0, source="wrapper", reason="test"))
+        rospy.sleep(1.0)
+        self._publish(self._good(seed=2))
+        self.assertIsNotNone(self._wait_for_map(1), "a map from the whole room")
+        with self.lock:
+            whole = self.octree_leaves[-1]
+        state.publish(SlamState(state=SlamState.NEW_MAP, map_index=1, source="wrapper",
+                                reason="test: SLAM started a new map"))
+        rospy.sleep(1.0)
+        room = synthetic_room(seed=3)
+        self._publish(points_to_cloud(room[room[:, 0] < 3.0], Header(frame_id="map")))
+        with self.lock:
+            half = self.octree_leaves[-1]
+        self.assertLess(half, 0.8 * whole, f"octree leaves: {whole} for the room, {half} after the "
+                        "switch for half of it")
 
     def test_bad_clouds_and_files(self):
         rospy.wait_for_service("ground_mapper/load", 60.0)

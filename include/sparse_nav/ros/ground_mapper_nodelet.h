@@ -27,8 +27,8 @@ namespace sparse_nav
  * Subscribes `cloud/filtered` (map frame, metres) and TF map -> camera; publishes
  * `cloud/obstacles` and `cloud/floor` (map frame), `floor_plane` (sparse_nav/FloorEstimate),
  * `ground_mapper/floor_marker` and `ground_mapper/occupied_voxels` (visualization_msgs), and
- * `/diagnostics`. Subscribes `slam/state` to start afresh when the SLAM map changes. Services `~save` / `~load` (sparse_nav/MapFile: a name in map_dir, .bt) and
- * `~reset` (std_srvs/Trigger).
+ * `/diagnostics`. Subscribes `slam/state` to start afresh when the SLAM map changes. Services
+ * `~save` / `~load` (sparse_nav/MapFile: a name in map_dir, .bt) and `~reset` (std_srvs/Trigger).
  */
 class GroundMapperNodelet : public nodelet::Nodelet
 {

@@ -73,7 +73,9 @@ class SimBridgeTest(unittest.TestCase):
         while rospy.Time.now().is_zero() and not rospy.is_shutdown():
             rospy.sleep(0.05)
         rospy.sleep(1.0)
-        self._drive_until(self.forced_loss_s + 25.0)
+        # Long enough after the loss for the new map to collect several scale samples: the ground
+        # scan turns on the spot before each sideways drive, so its moves come slowly.
+        self._drive_until(self.forced_loss_s + 45.0)
         self._wait_sim(2.0)
         with self.lock:
             stamps = {k: list(v) for k, v in self.stamps.items()}

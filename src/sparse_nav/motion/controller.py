@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from sparse_nav.exit_finder.geometry import segment_distances
 from sparse_nav.motion.primitive import PathFollower
 
 IDLE, FOLLOWING, REACHED, STOPPED_STALE, STOPPED_LOST, WALL_SEEKING, WALL_REACHED, FAILED = range(8)
@@ -429,10 +430,4 @@ def _same_route(old, new, tolerance_m):
     pts = new[1:]
     if len(old) < 2:
         return bool(np.all(np.hypot(*(pts - old[0]).T) <= tolerance_m))
-    a, b = old[:-1], old[1:]
-    ab = b - a
-    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
-    t = np.clip(np.einsum("kij,ij->ki", pts[:, None, :] - a[None], ab) / length2, 0.0, 1.0)
-    nearest = a[None] + t[..., None] * ab[None]
-    dist = np.hypot(*(pts[:, None, :] - nearest).transpose(2, 0, 1)).min(axis=1)
-    return bool(np.all(dist <= tolerance_m))
+    return bool(np.all(segment_distances(pts, old[:-1], old[1:]).min(axis=1) <= tolerance_m))

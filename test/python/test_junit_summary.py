@@ -2,6 +2,8 @@
 import importlib.util
 import os
 
+import pytest
+
 SPEC = importlib.util.spec_from_file_location(
     "junit_summary", os.path.join(os.path.dirname(__file__), "..", "junit_summary.py"))
 junit_summary = importlib.util.module_from_spec(SPEC)
@@ -30,19 +32,16 @@ def test_suite_error_without_cases_is_a_failure(tmp_path):
     assert junit_summary.collect(str(tmp_path))[1]
 
 
-def test_failure_line_carries_the_assertion_message(tmp_path):
+@pytest.mark.parametrize("text, expected", [
+    # pytest: the traceback first, the assertion last
+    ("Traceback\n  File x\nAssertionError: 0.49 not greater than 0.7", "0.49 not greater than 0.7"),
+    # rosunit: the assertion first, the traceback after it
+    ('6.5 not less than 0.75 : the door\n  File "x.py", line 1, in t\n    self.assertLess(a, b)',
+     "6.5 not less than 0.75"),
+])
+def test_failure_line_carries_the_assertion_message(tmp_path, text, expected):
     (tmp_path / "rosunit-z.xml").write_text(
         '<testsuite tests="1"><testcase classname="T" name="c">'
-        '<failure message="">Traceback\n  File x\nAssertionError: 0.49 not greater than 0.7'
-        '</failure></testcase></testsuite>')
+        f'<failure type="AssertionError">{text}</failure></testcase></testsuite>')
     failed = junit_summary.collect(str(tmp_path))[1]
-    assert len(failed) == 1 and "0.49 not greater than 0.7" in failed[0]
-
-
-def test_rosunit_failure_line_starts_with_the_assertion(tmp_path):
-    (tmp_path / "rosunit-w.xml").write_text(
-        '<testsuite tests="1"><testcase classname="T" name="d"><failure type="AssertionError">'
-        '6.5 not less than 0.75 : the door\n  File "x.py", line 1, in t\n    self.assertLess(a, b)'
-        '</failure></testcase></testsuite>')
-    failed = junit_summary.collect(str(tmp_path))[1]
-    assert len(failed) == 1 and "6.5 not less than 0.75" in failed[0]
+    assert len(failed) == 1 and expected in failed[0]

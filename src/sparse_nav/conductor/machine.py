@@ -14,6 +14,10 @@ import enum
 import math
 from typing import List, Optional, Tuple
 
+import numpy as np
+
+from sparse_nav.exit_finder.geometry import boundary_distances, points_in_polygon
+
 
 class State(enum.Enum):
     START = "START"
@@ -69,6 +73,9 @@ class Observation:
     exit_alternatives: Tuple = ()        # its further candidates, best first
     exit_answered: bool = False          # the exit finder answered since the last request
     exit_leads_out: bool = True          # the map shows free space beyond exit_xy (a way out)
+    # The exit finder's room outline [(x, y), ...] in the current SLAM map; empty when unknown
+    # or drawn in another SLAM map.
+    room_outline: Tuple = ()
     navigator_state: str = ""            # navigator/status state name, lower case
     motion_failed: bool = False          # the motion layer gave up (blocked, refused commands)
     start_requested: bool = False
@@ -91,6 +98,7 @@ class ConductorConfig:
     exit_check_far_m: float = 1.2        # ... exit candidate up to this far (m): candidates with
     exit_min_free_share: float = 0.1     # at least this share free there go first
     reached_tolerance_m: float = 0.4     # the navigator's "reached" or this close counts
+    left_room_margin_m: float = 1.0      # this far outside the room outline: the robot is out
     lost_timeout_s: float = 60.0         # tracking lost longer than this: gave up
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
 
@@ -99,7 +107,7 @@ class ConductorConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
-                     "lost_timeout_s", "recover_timeout_s"):
+                     "lost_timeout_s", "recover_timeout_s", "left_room_margin_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -121,6 +129,18 @@ class Transition:
 
 
 _FAILED_NAVIGATION = ("no_path", "goal_in_obstacle")
+
+
+def distance_outside(xy, outline):
+    """How far (same units) the point xy lies outside the polygon outline; 0 inside it or
+    when there is no outline (fewer than three vertices)."""
+    poly = np.asarray(outline, dtype=float).reshape(-1, 2)
+    if len(poly) < 3 or xy is None:
+        return 0.0
+    q = np.asarray(xy, dtype=float).reshape(1, 2)
+    if points_in_polygon(q, poly)[0]:
+        return 0.0
+    return float(boundary_distances(q, poly)[0][0])
 
 
 class Conductor:
@@ -147,6 +167,7 @@ class Conductor:
         self._recover_since_s = None
         self._scan_started = False
         self._scan_kind = None
+        self._last_tracked_xy: Optional[Tuple[float, float]] = None
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
@@ -182,6 +203,11 @@ class Conductor:
         if obs.return_requested and self.start_xy is not None:
             return self._navigate(t, Phase.RETURN_TO_START, self.start_xy, "return to start requested")
 
+        out = self._left_the_room(t, obs)
+        if out is not None:
+            return out
+        if not obs.tracking_lost and obs.robot_xy is not None:
+            self._last_tracked_xy = tuple(obs.robot_xy)
         safety = self._safety(t, obs)
         if safety is not None:
             return safety
@@ -202,6 +228,21 @@ class Conductor:
 
     def _give_up(self, t, why):
         self._set(t, State.IDLE, Phase.GAVE_UP, why)
+        return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
+
+    def _left_the_room(self, t, obs):
+        """DONE once the robot, on its way out, is clearly outside the room outline. A robot
+        often loses tracking right after a door, facing what it has never seen: its last tracked
+        position then decides, in the map that outline belongs to."""
+        if self.phase not in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH):
+            return None
+        xy = self._last_tracked_xy if obs.tracking_lost else obs.robot_xy
+        outside = distance_outside(xy, obs.room_outline)
+        if outside < self.config.left_room_margin_m:
+            return None
+        lost = " (then tracking was lost)" if obs.tracking_lost else ""
+        self._set(t, State.IDLE, Phase.DONE,
+                  f"left the room: {outside:.2f} m outside its outline{lost}")
         return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
 
     def _safety(self, t, obs):

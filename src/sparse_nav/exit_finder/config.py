@@ -81,7 +81,9 @@ class ExitFinderConfig:
     gap_log_smooth: float = 2.0        # Gaussian smoothing of that histogram (bins)
     gap_min_range: float = 0.05        # r.u.: nearer points are ignored by the profile
     gap_max_range: float = 5.0         # r.u.: farther points are ignored by the profile
-    gap_surface_share: float = 0.5     # first peak with this share of the bearing's highest peak
+    gap_surface_share: float = 0.8     # first peak with this share of the bearing's highest peak
+                                       # (lower: depth streaks in front of a thick wall open
+                                       # false notches; bench and live runs say 0.8)
     gap_min_surface_points: float = 3.0  # ... and about this many points is the surface
     gap_jump: float = 0.2              # a surface jump by more than this share of range: a jamb
     gap_jamb_bins: int = 2             # a jamb's wall runs on this many bearings beside it, and

@@ -243,14 +243,25 @@ class DroneMoveScale:
     """Pairs Tello move commands with their answers to measure SLAM units per commanded metre.
 
     The drone executes commands one after another, so a command starts when the previous one
-    answered (or when it is sent to an idle drone) and ends at its own answer.
+    answered (or when it is sent to an idle drone) and ends at its own answer. The move's end is
+    the first camera pose after the answer: the pose at hand when the answer arrives may still
+    be on its way along the move (up to a camera frame late, 10 % of a 0.3 m move). Commands and
+    answers travel on two topics, so an answer can overtake its own command; such an answer is
+    kept and closes the next command, so that later answers still pair with their own commands.
     """
 
     def __init__(self):
         self._pending = []
         self._start_pose = None
+        self._early_answers = 0
+        self._open_move = None  # (start position, metres) awaiting the pose after its answer
+        self._settling = False  # an answer came: the next pose is where the drone stopped
 
     def on_command(self, text, current_position):
+        if self._early_answers:
+            self._early_answers -= 1  # answered already: where it went is unknown
+            self._start_pose = current_position
+            return
         self._pending.append(text.strip())
         if len(self._pending) == 1:
             self._start_pose = current_position
@@ -258,17 +269,30 @@ class DroneMoveScale:
     def invalidate(self):
         """Tracking was lost or the map changed: the running command's start pose is unusable."""
         self._start_pose = None
+        self._open_move = None
+        self._settling = False
 
     def on_response(self, response, current_position):
-        """Returns (slam_units, metric_m) for a successful move with known poses, else None."""
+        """Notes the answer; a successful move with a known start waits for on_pose."""
         if not self._pending:
-            return None
+            self._early_answers += 1
+            return
         command = self._pending.pop(0)
         start, self._start_pose = self._start_pose, current_position
+        self._settling = True
         match = _MOVE.match(command)
-        if not match or response.strip().lower() != "ok":
+        self._open_move = None
+        if match and response.strip().lower() == "ok" and start is not None:
+            self._open_move = (np.asarray(start, dtype=float), int(match.group(2)) / 100.0)
+
+    def on_pose(self, position):
+        """Returns (slam_units, metric_m) when this pose ends an answered move, else None."""
+        if not self._settling or position is None:
             return None
-        if start is None or current_position is None:
+        self._settling = False
+        if self._pending:
+            self._start_pose = position  # the next command started from here
+        if self._open_move is None:
             return None
-        metric = int(match.group(2)) / 100.0
-        return float(np.linalg.norm(np.asarray(current_position) - np.asarray(start))), metric
+        (start, metric), self._open_move = self._open_move, None
+        return float(np.linalg.norm(np.asarray(position, dtype=float) - start)), metric

@@ -128,18 +128,35 @@ def test_scale_estimator_is_robust_and_confident_with_samples():
     assert est.estimate() == (pytest.approx(0.4, rel=0.02), 0.0, 0)
 
 
-def test_drone_moves_pair_with_responses_in_order():
+def test_drone_moves_pair_with_responses_in_order_and_end_at_the_next_pose():
     moves = DroneMoveScale()
     moves.on_command("forward 100", np.zeros(3))
     moves.on_command("cw 90", None)
-    assert moves.on_response("ok", np.array([0.0, 0.0, 2.5])) == (2.5, 1.0)
-    assert moves.on_response("ok", np.array([0.0, 0.0, 2.5])) is None  # a turn has no length
+    assert moves.on_pose(np.array([0.0, 0.0, 1.0])) is None  # still moving, not answered
+    moves.on_response("ok", np.array([0.0, 0.0, 2.0]))  # the pose at hand lags the drone
+    assert moves.on_pose(np.array([0.0, 0.0, 2.5])) == (2.5, 1.0)
+    assert moves.on_pose(np.array([0.0, 0.0, 2.5])) is None  # one sample per move
+    moves.on_response("ok", np.array([0.0, 0.0, 2.5]))
+    assert moves.on_pose(np.array([0.0, 0.0, 2.5])) is None  # a turn has no length
     moves.on_command("left 50", np.zeros(3))
-    assert moves.on_response("error: obstacle", np.ones(3)) is None
+    moves.on_response("error: obstacle", np.ones(3))
+    assert moves.on_pose(np.ones(3)) is None
     moves.on_command("back 50", np.zeros(3))
     moves.invalidate()
-    assert moves.on_response("ok", np.ones(3)) is None
-    assert moves.on_response("ok", np.ones(3)) is None  # an answer without a command
+    moves.on_response("ok", np.ones(3))
+    assert moves.on_pose(np.ones(3)) is None
+
+
+def test_an_answer_that_overtakes_its_command_does_not_shift_the_pairing():
+    moves = DroneMoveScale()
+    moves.on_response("ok", np.zeros(3))        # the answer to "cw 90" arrives first
+    moves.on_command("cw 90", np.zeros(3))      # ... then the command: already answered
+    moves.on_command("right 50", np.zeros(3))
+    moves.on_response("ok", np.zeros(3))
+    assert moves.on_pose(np.array([2.0, 0.0, 0.0])) == (2.0, 0.5)  # paired with its own command
+    moves.on_command("cw 90", np.array([2.0, 0.0, 0.0]))
+    moves.on_response("ok", np.array([2.0, 0.0, 0.0]))
+    assert moves.on_pose(np.array([2.0, 0.1, 0.0])) is None  # a turn, not a 0.1-unit move
 
 
 def test_config_validation():

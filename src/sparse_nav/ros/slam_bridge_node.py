@@ -161,6 +161,9 @@ class SlamBridgeNode:
             self.map_event = f"SLAM merged back into map {self.anchors.current.index}"
         self.t_map_base = t_map_base
         self.last_slam_position = t_slam_cam[:3, 3].copy()
+        sample = self.drone_moves.on_pose(self.last_slam_position)
+        if sample is not None and self.scale.add(*sample):
+            self._apply_scale()
         if not self.publish_odom_tf:
             self._update_map_odom(msg.header.stamp)
 
@@ -242,9 +245,7 @@ class SlamBridgeNode:
 
     @locked
     def _on_drone_response(self, msg):
-        sample = self.drone_moves.on_response(msg.data, self._current_slam_position())
-        if sample is not None and self.scale.add(*sample):
-            self._apply_scale()
+        self.drone_moves.on_response(msg.data, self._current_slam_position())
 
     def _apply_scale(self):
         self.anchors.set_scale(self.scale.estimate()[0])

@@ -62,6 +62,7 @@ class NavigatorNode:
         self.input_error = ""
         self.counts = dict(maps=0, map_updates=0, goals=0, bad_inputs=0)
         self.action_goal = None
+        self.served_goal = None  # the action goal the core follows
         self.action_preempted = False
 
         self.path_pub = rospy.Publisher("navigator/path", Path, queue_size=2)
@@ -178,6 +179,7 @@ class NavigatorNode:
         goal, self.action_goal = self.action_goal, None
         preempted, self.action_preempted = self.action_preempted, False
         if goal is not None:
+            self.served_goal = goal
             if not self._new_goal(goal.target_pose) and self.action.is_active():
                 self.action.set_aborted(MoveBaseResult(), self.input_error)
         elif preempted and self.action.is_active():
@@ -220,7 +222,9 @@ class NavigatorNode:
         self._update_pose()
         status = self.nav.update()
         self._publish(status)
-        if self.action.is_active():
+        # A goal accepted by actionlib reaches the core at the next timer step; until then the
+        # core's status belongs to the previous goal and must not end the new one.
+        if self.action.is_active() and self.action.current_goal.get_goal() is self.served_goal:
             if status.state == REACHED:
                 self.action.set_succeeded(MoveBaseResult(), status.reason)
             elif status.state in (NO_PATH, REJECTED):

@@ -223,6 +223,40 @@ def test_robot_inside_an_obstacle_recovers():
     assert kinds(actions) == [ActionKind.GOAL]
 
 
+def test_parked_near_an_exit_inside_an_obstacle_passes_through_from_there():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, stall_timeout_s=30.0, exit_near_m=1.0))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    for x in (1.0, 2.0, 3.0, 4.3):  # progress
+        m.tick(dt=10.0, robot_xy=(x, 0.0), navigator_state="following")
+    m.tick(dt=20.0, robot_xy=(4.35, 0.0))  # parked 0.65 m short: the navigator keeps 'following'
+    assert m.conductor.phase == Phase.GO_TO_EXIT
+    actions = m.tick(dt=15.0)
+    assert m.conductor.phase == Phase.PASS_THROUGH
+    assert kinds(actions) == [ActionKind.GOAL] and actions[0].payload[0] > 5.0
+    assert any("no closer to the exit" in tr.reason for tr in m.conductor.history)
+
+
+def test_no_progress_far_from_the_goal_counts_as_a_failure_time_lost_does_not():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, stall_timeout_s=30.0,
+                                goal_failure_grace_s=5.0, max_goal_failures=1))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 5.0),))
+    m.tick(dt=20.0, robot_xy=(1.0, 0.0), navigator_state="following")
+    m.tick(dt=25.0, tracking_lost=True)
+    m.tick(dt=25.0)
+    m.tick(tracking_lost=False)  # 50 s lost: no stall
+    m.tick(dt=20.0)  # the stall clock starts again here
+    assert m.conductor.phase == Phase.GO_TO_EXIT and m.conductor.exit_xy == (5.0, 0.0)
+    assert m.tick(dt=31.0) == []  # 31 s without progress
+    actions = m.tick(dt=6.0)  # ... and the grace time: the next candidate
+    assert m.conductor.exit_xy == (0.0, 5.0)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (0.0, 5.0))]
+    assert "no progress" in m.conductor.reason
+
+
 def test_navigator_failures_count_after_a_grace_time_and_refind_the_exit():
     m = Mission(ConductorConfig(wall_scan_enabled=False, goal_failure_grace_s=2.0, max_goal_failures=2))
     m.tick(start_requested=True)

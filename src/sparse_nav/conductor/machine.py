@@ -99,6 +99,9 @@ class ConductorConfig:
     exit_min_free_share: float = 0.1     # at least this share free there go first
     reached_tolerance_m: float = 0.4     # the navigator's "reached" or this close counts
     left_room_margin_m: float = 1.0      # this far outside the room outline: the robot is out
+    stall_timeout_s: float = 30.0        # no progress toward a goal for this long: a goal failure
+    stall_progress_m: float = 0.2        # ... progress: this much closer than ever before
+    exit_near_m: float = 1.0             # stalled this close to the exit: pass through from there
     lost_timeout_s: float = 60.0         # tracking lost longer than this: gave up
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
 
@@ -107,7 +110,8 @@ class ConductorConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
-                     "lost_timeout_s", "recover_timeout_s", "left_room_margin_m"):
+                     "lost_timeout_s", "recover_timeout_s", "left_room_margin_m",
+                     "stall_timeout_s", "stall_progress_m", "exit_near_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -163,6 +167,7 @@ class Conductor:
         self._exit_requested_s = None
         self._goal_failures = 0
         self._failure_since_s = None
+        self._progress = None  # (time, best distance to the goal) of the last progress
         self._lost_since_s = None
         self._recover_since_s = None
         self._scan_started = False
@@ -210,6 +215,7 @@ class Conductor:
             self._last_tracked_xy = tuple(obs.robot_xy)
         safety = self._safety(t, obs)
         if safety is not None:
+            self._progress = None  # time lost or recovering is not a stall
             return safety
         if self.state == State.START:
             return self._start_state(t, obs)
@@ -347,13 +353,29 @@ class Conductor:
         self.goal_xy = tuple(goal_xy)
         self._goal_failures = 0
         self._failure_since_s = None
+        self._progress = None
         self._set(t, State.GOAL, phase, why)
         return [Action(ActionKind.GOAL, self.goal_xy)]
+
+    def _stalled(self, t, obs):
+        """True when the robot has come no closer to the goal for stall_timeout_s (a robot parked
+        at the free cell nearest to a goal inside an obstacle, the navigator still 'following')."""
+        if obs.robot_xy is None or self.goal_xy is None:
+            return False
+        d = math.dist(obs.robot_xy, self.goal_xy)
+        if self._progress is None or d < self._progress[1] - self.config.stall_progress_m:
+            self._progress = (t, d)
+        return t - self._progress[0] > self.config.stall_timeout_s
 
     def _goal_state(self, t, obs):
         cfg = self.config
         near = (obs.robot_xy is not None and self.goal_xy is not None
                 and math.dist(obs.robot_xy, self.goal_xy) <= cfg.reached_tolerance_m)
+        stalled = self._stalled(t, obs)
+        if (stalled and self.phase == Phase.GO_TO_EXIT
+                and math.dist(obs.robot_xy, self.goal_xy) <= cfg.exit_near_m):
+            self._set(t, State.GOAL, self.phase, "no closer to the exit: pass through from here")
+            near = True
         if obs.navigator_state == "reached" or near:
             if self.phase == Phase.GO_TO_EXIT:
                 target = self._beyond_exit()
@@ -362,7 +384,8 @@ class Conductor:
                       Phase.PASS_THROUGH else "back at the start")
             return [Action(ActionKind.STOP)]
         failure = (f"navigator: {obs.navigator_state}" if obs.navigator_state in _FAILED_NAVIGATION
-                   else "motion failed" if obs.motion_failed else None)
+                   else "motion failed" if obs.motion_failed
+                   else f"no progress for {cfg.stall_timeout_s:g} s" if stalled else None)
         if failure is not None:
             if self._failure_since_s is None:
                 self._failure_since_s = t
@@ -382,6 +405,7 @@ class Conductor:
                         return self._ask_exit(t, f"{failure} on the way to the exit; "
                                               "look for it again")
                     return self._give_up(t, f"{failure} {self._goal_failures} times")
+                self._progress = None
                 return [Action(ActionKind.GOAL, self.goal_xy)]
         else:
             self._failure_since_s = None

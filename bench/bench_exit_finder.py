@@ -19,7 +19,8 @@ range, about 2.5 % spurious points (a third of them far behind surfaces), a rand
 
 Methods run with their defaults; ``gaps`` and ``auto`` take the SLAM map's origin (its first
 camera pose) as the viewpoint. The rows ``gaps/estimate`` and ``gaps/centroid`` show ``gaps`` when
-the viewpoint is estimated from the cloud alone or taken as the mean of the points.
+the viewpoint is estimated from the cloud alone or taken as the mean of the points;
+``gaps/share0.5`` shows ``gaps`` with its previous surface threshold, side by side.
 
 "Door visible" rooms: at least one true exit centre is within the camera range of the start and
 in line of sight of it (no wall, and no box taller than the flight height, in between); rooms
@@ -62,6 +63,7 @@ LARGE_CLOUD_POINTS = 20000
 VARIANTS = {
     "gaps/estimate": ("gaps", {"gap_viewpoint": "estimate"}),   # viewpoint from the cloud only
     "gaps/centroid": ("gaps", {"gap_viewpoint": "centroid"}),
+    "gaps/share0.5": ("gaps", {"gap_surface_share": 0.5}),      # the default before 0.8
 }
 ALL_METHODS = tuple(METHODS) + tuple(VARIANTS)
 

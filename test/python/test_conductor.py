@@ -72,6 +72,26 @@ def test_no_map_after_the_scan_rounds_gives_up_with_the_reason():
     assert "no navigable map after 2 scans" in m.conductor.reason
 
 
+def test_a_new_slam_map_during_the_initial_scan_scans_again_a_merge_back_does_not():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, max_scan_rounds=2))
+    m.tick(start_requested=True, slam_map_index=0)
+    m.tick(scan_running=True)
+    m.tick(slam_map_index=1)  # lost, then a new map: it holds only the rest of the scan
+    actions = m.tick(scan_running=False, map_ready=True)
+    assert m.conductor.phase == Phase.INITIAL_SCAN and "SLAM map changed" in m.conductor.reason
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
+    m.tick(scan_running=True)
+    m.tick(slam_map_index=2)  # again, but no rounds are left: the map at hand is used
+    assert kinds(m.tick(scan_running=False, map_ready=True)) == [ActionKind.FIND_EXIT]
+
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m.tick(start_requested=True, slam_map_index=0)
+    m.tick(scan_running=True)
+    m.tick(slam_map_index=1)
+    m.tick(slam_map_index=0)  # merged back into the map the scan began in
+    assert kinds(m.tick(scan_running=False, map_ready=True)) == [ActionKind.FIND_EXIT]
+
+
 def test_no_exit_scans_more_then_gives_up():
     m = Mission(ConductorConfig(wall_scan_enabled=False, max_exit_attempts=2))
     m.tick(start_requested=True)

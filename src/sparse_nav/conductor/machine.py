@@ -64,6 +64,7 @@ class Observation:
 
     time_s: float
     tracking_lost: bool = False          # SLAM lost its map (not: not initialised yet)
+    slam_map_index: Optional[int] = None  # the SLAM map the robot tracks in (slam/state)
     map_ready: bool = False              # a grid with free cells around the robot exists
     robot_xy: Optional[Tuple[float, float]] = None
     robot_in_obstacle: bool = False
@@ -172,6 +173,7 @@ class Conductor:
         self._recover_since_s = None
         self._scan_started = False
         self._scan_kind = None
+        self._scan_map_index = None  # the SLAM map when the running scan began
         self._last_tracked_xy: Optional[Tuple[float, float]] = None
 
     def _scan(self, name):
@@ -300,13 +302,19 @@ class Conductor:
     def _start_state(self, t, obs):
         cfg = self.config
         if obs.scan_running:
+            if not self._scan_started:
+                self._scan_map_index = obs.slam_map_index
             self._scan_started = True
             return []
         if not self._scan_started:
             return []  # the scan was asked for and has not begun yet
         self._scan_started = False
         if self.phase == Phase.INITIAL_SCAN:
-            if obs.map_ready and not obs.scan_failed:
+            # A loss that ended in a new SLAM map leaves a map (and a grid) of the part of the
+            # room scanned since: scan the whole room again in it while rounds are left.
+            map_changed = (obs.slam_map_index != self._scan_map_index
+                           and self._scan_rounds < cfg.max_scan_rounds)
+            if obs.map_ready and not obs.scan_failed and not map_changed:
                 if cfg.wall_scan_enabled:
                     self._set(t, State.START, Phase.WALL_SCAN, "initial scan done: wall scan")
                     return [self._scan("wall")]
@@ -314,7 +322,8 @@ class Conductor:
             if self._scan_rounds >= cfg.max_scan_rounds:
                 return self._give_up(t, f"no navigable map after {self._scan_rounds} scans")
             self._scan_rounds += 1
-            why = "scan failed" if obs.scan_failed else "no navigable map yet"
+            why = ("scan failed" if obs.scan_failed else
+                   "the SLAM map changed during the scan" if map_changed else "no navigable map yet")
             self._set(t, State.START, Phase.INITIAL_SCAN, f"{why}: scan again "
                       f"({self._scan_rounds}/{cfg.max_scan_rounds})")
             return [self._scan("initial" if self._scan_rounds % 2 else "random")]

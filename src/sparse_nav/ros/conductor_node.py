@@ -98,6 +98,7 @@ class ConductorNode:
             if msg.map_index != self.slam_map_index:
                 self.obs.room_outline = ()  # drawn in the previous map's frame
             self.slam_map_index = msg.map_index
+            self.obs.slam_map_index = msg.map_index
 
     def _on_motion_status(self, msg):
         with self.lock:

@@ -227,6 +227,16 @@ def test_force_loss_at_s():
     assert after[0].state == S.NOT_INITIALIZED and after[0].map_id == 1
 
 
+def test_a_loss_forced_before_the_map_initialises_waits_for_tracking():
+    sim = Simulator(_room(), SimConfig(seed=1, force_loss_at_s=[0.05]))
+    outs = _drive(sim, -0.3, 0.0, 3.0)
+    first_ok = next(o for o in outs if o.state == S.OK)
+    assert first_ok.stamp_s > 0.05 + FRAME_S  # not initialised at the forced time
+    lost = [o for o in outs if o.state == S.LOST]
+    assert lost and lost[0].stamp_s <= first_ok.stamp_s + 2 * FRAME_S
+    assert sim.tracking_losses == 1
+
+
 def test_loss_starts_a_new_map_that_merges_back_on_revisit():
     world = _room(start=(4.0, 2.0, 180.0))
     sim = Simulator(world, SimConfig(seed=0, force_loss_at_s=[2.0]))

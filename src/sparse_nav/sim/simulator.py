@@ -63,6 +63,7 @@ class SimConfig:
     slam_pose_noise_m: float = 0.005           # jitter of reported camera positions (m)
     slam_pose_noise_deg: float = 0.1           # jitter of reported camera orientations (deg)
     force_loss_at_s: list = dataclasses.field(default_factory=list)  # tracking forced LOST
+    #                                            (at the first tracking frame from each time)
     force_loss_duration_s: float = 0.0         # the camera stays blind this long after each (s)
 
     # Ground robot (unicycle).

@@ -199,8 +199,11 @@ class MonocularSlam:
           visible: sorted int array of detected feature indices.
           turn_rate_rad_s: camera rotation rate since the previous frame (rad/s).
         """
+        # A forced loss waits until there is tracking to lose (a test that forces one mid-scan
+        # must get one even when the map initialised late).
         forced = False
-        while self._pending_losses and self._pending_losses[0] <= stamp_s + 1e-9:
+        tracking = self.state in (TrackingState.OK, TrackingState.RECENTLY_LOST)
+        while tracking and self._pending_losses and self._pending_losses[0] <= stamp_s + 1e-9:
             self._pending_losses.pop(0)
             forced = True
         fast_turn = turn_rate_rad_s > self.cfg.slam_max_turn_rate_rad_s

@@ -151,40 +151,46 @@ def test_tracking_loss_stops_relocalises_then_resumes_the_goal():
 ROOM = ((-1.0, -1.0), (6.0, -1.0), (6.0, 1.0), (-1.0, 1.0))  # the finder's room outline
 
 
-def test_outside_the_room_outline_on_the_way_out_is_done():
-    m = Mission(ConductorConfig(wall_scan_enabled=False, left_room_margin_m=0.5))
+def passing_through(config=None):
+    """A mission passing through the exit at (5, 0) of ROOM, the robot at (5.5, 0)."""
+    m = Mission(config or ConductorConfig(wall_scan_enabled=False))
     m.tick(start_requested=True)
     m.run_scan()
     m.tick(exit_answered=True, exit_xy=(5.0, 0.0), room_outline=ROOM)
-    assert m.tick(robot_xy=(5.8, 0.9)) == []  # near the wall, still inside
-    assert m.tick(robot_xy=(6.3, 0.9)) == []  # outside by less than the margin
-    actions = m.tick(robot_xy=(6.7, 0.5))
+    m.tick(robot_xy=(5.0, 0.0), navigator_state="reached")
+    m.tick(robot_xy=(5.5, 0.0), navigator_state="following")
+    assert m.conductor.phase == Phase.PASS_THROUGH
+    return m
+
+
+def test_tracking_lost_outside_the_room_outline_while_passing_through_is_done():
+    m = passing_through()
+    m.tick(robot_xy=(7.2, 0.0))  # outside, tracking fine: the pass-through goal decides
+    assert m.conductor.phase == Phase.PASS_THROUGH
+    actions = m.tick(tracking_lost=True, robot_xy=(9.0, 0.0))  # a pose after the loss: unused
     assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
     assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
-    assert "outside" in m.conductor.reason
+    assert "tracking lost 1.20 m outside" in m.conductor.reason
 
 
-def test_a_loss_after_leaving_the_outline_is_done_a_loss_inside_is_not():
-    m = Mission(ConductorConfig(wall_scan_enabled=False))
-    m.tick(start_requested=True)
-    m.run_scan()
-    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), room_outline=ROOM)
-    m.tick(robot_xy=(5.5, 0.0))
-    m.tick(tracking_lost=True, robot_xy=(9.0, 0.0))  # a pose after the loss counts for nothing
+def test_tracking_lost_inside_or_near_the_outline_or_without_one_relocalises():
+    m = passing_through()
+    m.tick(robot_xy=(5.5, 1.6))  # 0.6 m outside: less than the margin
+    m.tick(tracking_lost=True)
     assert m.conductor.state == State.LOST
-    m.tick(tracking_lost=False, robot_xy=(6.6, 0.0))
-    assert m.conductor.phase == Phase.GO_TO_EXIT  # 0.6 m outside: not yet
-    m.tick(robot_xy=(7.2, 0.0))
-    assert m.conductor.phase == Phase.DONE and "tracking was lost" not in m.conductor.reason
+
+    m = passing_through()
+    m.tick(robot_xy=(7.5, 0.0), room_outline=())  # no outline (another SLAM map)
+    m.tick(tracking_lost=True)
+    assert m.conductor.state == State.LOST
 
     m = Mission(ConductorConfig(wall_scan_enabled=False))
     m.tick(start_requested=True)
     m.run_scan()
     m.tick(exit_answered=True, exit_xy=(5.0, 0.0), room_outline=ROOM)
-    m.tick(robot_xy=(7.5, 0.0), room_outline=())  # no outline (another SLAM map): not judged
-    assert m.conductor.phase == Phase.GO_TO_EXIT
-    m.tick(robot_xy=(7.5, 0.0), room_outline=ROOM, tracking_lost=True)
-    assert m.conductor.phase == Phase.DONE and "tracking was lost" in m.conductor.reason
+    m.tick(robot_xy=(7.5, 0.0))  # on the way to the exit, not passing through it
+    m.tick(tracking_lost=True)
+    assert m.conductor.state == State.LOST
 
 
 def test_not_initialised_slam_is_not_a_loss():

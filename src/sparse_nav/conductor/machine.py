@@ -99,7 +99,7 @@ class ConductorConfig:
     exit_check_far_m: float = 1.2        # ... exit candidate up to this far (m): candidates with
     exit_min_free_share: float = 0.1     # at least this share free there go first
     reached_tolerance_m: float = 0.4     # the navigator's "reached" or this close counts
-    left_room_margin_m: float = 1.0      # this far outside the room outline: the robot is out
+    left_room_margin_m: float = 1.0      # lost this far outside the outline passing through: out
     stall_timeout_s: float = 30.0        # no progress toward a goal for this long: a goal failure
     stall_progress_m: float = 0.2        # ... progress: this much closer than ever before
     exit_near_m: float = 1.0             # stalled this close to the exit: pass through from there
@@ -239,18 +239,17 @@ class Conductor:
         return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
 
     def _left_the_room(self, t, obs):
-        """DONE once the robot, on its way out, is clearly outside the room outline. A robot
-        often loses tracking right after a door, facing what it has never seen: its last tracked
-        position then decides, in the map that outline belongs to."""
-        if self.phase not in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH):
+        """DONE when tracking is lost while passing through with the last tracked position
+        clearly outside the room outline: a robot often loses tracking right after a door, facing
+        what it has never seen. Without a loss the pass-through goal decides, because the outline
+        covers only what the scan saw (an L-shaped room's far arm lies outside it)."""
+        if self.phase != Phase.PASS_THROUGH or not obs.tracking_lost:
             return None
-        xy = self._last_tracked_xy if obs.tracking_lost else obs.robot_xy
-        outside = distance_outside(xy, obs.room_outline)
+        outside = distance_outside(self._last_tracked_xy, obs.room_outline)
         if outside < self.config.left_room_margin_m:
             return None
-        lost = " (then tracking was lost)" if obs.tracking_lost else ""
         self._set(t, State.IDLE, Phase.DONE,
-                  f"left the room: {outside:.2f} m outside its outline{lost}")
+                  f"left the room: tracking lost {outside:.2f} m outside its outline")
         return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
 
     def _safety(self, t, obs):

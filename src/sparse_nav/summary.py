@@ -82,7 +82,7 @@ def plot_grid(path, world, cells, resolution_m, origin_xy, t_truth_map, title=""
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(title + " — grid: free light, occupied dark; true walls red")
+    ax.set_title(title + "\ngrid: free light, occupied dark; true walls red")
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(path)

@@ -229,8 +229,11 @@ class ScaleEstimator:
         n = len(self._ratios)
         if n == 0:
             return self._prior, 0.0, 0
-        r = np.array(self._ratios)
-        med = float(np.median(r))
+        r = np.sort(self._ratios)
+        # The lower median: with two samples the median is their mean, and one move read short
+        # (a stale end pose: ratios of 30 against 3) made the map ten times too large, every
+        # step then looked like a map switch and the bridge started a new map every 2 s.
+        med = float(r[(n - 1) // 2])
         spread = float(np.median(np.abs(r - med))) / med if med > 0 else 1.0
         confidence = (n / (n + 3.0)) * max(0.0, 1.0 - 5.0 * spread)
         return med, float(confidence), n

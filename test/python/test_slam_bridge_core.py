@@ -128,6 +128,13 @@ def test_scale_estimator_is_robust_and_confident_with_samples():
     assert est.estimate() == (pytest.approx(0.4, rel=0.02), 0.0, 0)
 
 
+def test_a_second_sample_read_short_does_not_blow_the_scale_up():
+    est = ScaleEstimator(prior_metres_per_unit=1.0)
+    est.add(0.1, 0.3)    # 3 m per unit
+    est.add(0.01, 0.3)   # the same move read with a stale end pose: 30 m per unit
+    assert est.estimate()[0] == pytest.approx(3.0)  # not their mean, 16.5
+
+
 def test_drone_moves_pair_with_responses_in_order_and_end_at_the_next_pose():
     moves = DroneMoveScale()
     moves.on_command("forward 100", np.zeros(3))

@@ -365,23 +365,22 @@ class Conductor:
         self._set(t, State.GOAL, phase, why)
         return [Action(ActionKind.GOAL, self.goal_xy)]
 
-    def _stalled(self, t, obs):
+    def _stalled(self, t, distance):
         """True when the robot has come no closer to the goal for stall_timeout_s (a robot parked
         at the free cell nearest to a goal inside an obstacle, the navigator still 'following')."""
-        if obs.robot_xy is None or self.goal_xy is None:
+        if distance is None:
             return False
-        d = math.dist(obs.robot_xy, self.goal_xy)
-        if self._progress is None or d < self._progress[1] - self.config.stall_progress_m:
-            self._progress = (t, d)
+        if self._progress is None or distance < self._progress[1] - self.config.stall_progress_m:
+            self._progress = (t, distance)
         return t - self._progress[0] > self.config.stall_timeout_s
 
     def _goal_state(self, t, obs):
         cfg = self.config
-        near = (obs.robot_xy is not None and self.goal_xy is not None
-                and math.dist(obs.robot_xy, self.goal_xy) <= cfg.reached_tolerance_m)
-        stalled = self._stalled(t, obs)
-        if (stalled and self.phase == Phase.GO_TO_EXIT
-                and math.dist(obs.robot_xy, self.goal_xy) <= cfg.exit_near_m):
+        distance = (math.dist(obs.robot_xy, self.goal_xy)
+                    if obs.robot_xy is not None and self.goal_xy is not None else None)
+        near = distance is not None and distance <= cfg.reached_tolerance_m
+        stalled = self._stalled(t, distance)
+        if stalled and self.phase == Phase.GO_TO_EXIT and distance <= cfg.exit_near_m:
             self._set(t, State.GOAL, self.phase, "no closer to the exit: pass through from here")
             near = True
         if obs.navigator_state == "reached" or near:

@@ -60,7 +60,6 @@ class ConductorNode:
         self.conductor = Conductor(self.config)
         self.lock = threading.Lock()
         self.obs = Observation(time_s=0.0)
-        self.slam_map_index = None
         self.requests = {"start": self.auto_start, "stop": False, "return": False}
         self.grid = None
         self.took_off = False
@@ -95,9 +94,8 @@ class ConductorNode:
     def _on_slam_state(self, msg):
         with self.lock:
             self.obs.tracking_lost = msg.state == SlamState.LOST  # not initialised is no loss
-            if msg.map_index != self.slam_map_index:
+            if msg.map_index != self.obs.slam_map_index:
                 self.obs.room_outline = ()  # drawn in the previous map's frame
-            self.slam_map_index = msg.map_index
             self.obs.slam_map_index = msg.map_index
 
     def _on_motion_status(self, msg):
@@ -201,7 +199,7 @@ class ConductorNode:
         def call():
             answer, alternatives, leads_out, outline = None, (), True, ()
             with self.lock:
-                map_index = self.slam_map_index
+                map_index = self.obs.slam_map_index
             try:
                 rospy.wait_for_service(self.exit_service, timeout=10.0)
                 response = rospy.ServiceProxy(self.exit_service, FindExit)(method="")
@@ -229,7 +227,7 @@ class ConductorNode:
                 self.obs.exit_alternatives = alternatives
                 self.obs.exit_leads_out = leads_out
                 self.obs.exit_answered = True
-                if map_index == self.slam_map_index:
+                if map_index == self.obs.slam_map_index:
                     self.obs.room_outline = outline
         self.exit_thread = threading.Thread(target=call, daemon=True)
         self.exit_thread.start()

@@ -38,7 +38,6 @@ void GridPipelineConfig::validate() const
     throw std::invalid_argument("GridPipelineConfig: metres_per_unit must be finite and > 0");
   }
   guard.validate();
-  density.validate();
   voxel.validate();
   ground.validate();
   grid.validate();
@@ -47,7 +46,6 @@ void GridPipelineConfig::validate() const
 GridPipeline::GridPipeline(const GridPipelineConfig& config)
   : config_((config.validate(), config))
   , guard_(config.guard)
-  , density_(config.density)
   , voxel_(config.voxel)
   , ground_(config.ground)
   , builder_(config.grid)
@@ -78,8 +76,6 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       p *= s;
     }
     timer.lap("guard");
-    points = density_.apply(points, &r.density);
-    timer.lap("density");
     if (config_.voxel_enabled)
     {
       points = voxel_.apply(points, &r.voxel);
@@ -91,7 +87,7 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     timer.lap("voxel");
     if (points.empty())
     {
-      r.status = "empty cloud: no points left after the guard and filters (" + std::to_string(r.guard.n_non_finite) +
+      r.status = "empty cloud: no points left after the guard and the voxel grid (" + std::to_string(r.guard.n_non_finite) +
                  " non-finite, " + std::to_string(r.guard.n_out_of_range) + " out of range)";
       r.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       return r;
@@ -107,6 +103,7 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       r.stages_ms[kv.first] += kv.second;
     }
     r.floor = g.floor;
+    r.density = g.density;
     if (!g.ok)
     {
       r.status = g.status;
@@ -134,8 +131,8 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     timer.lap("grid");
     r.ok = r.grid.ok;
     char buf[256];
-    std::snprintf(buf, sizeof(buf), "%zu points -> %zu filtered -> %zu obstacles (%zu in free space); floor tilt %.1f deg; %s",
-                  r.n_points, points.size(), r.n_obstacles, r.n_freed, g.floor.plane.tilt_deg, r.grid.status.c_str());
+    std::snprintf(buf, sizeof(buf), "%zu points -> %zu voxels -> %zu dense -> %zu obstacles (%zu in free space); floor tilt %.1f deg; %s",
+                  r.n_points, points.size(), g.density.n_out, r.n_obstacles, r.n_freed, g.floor.plane.tilt_deg, r.grid.status.c_str());
     r.status = buf;
   }
   catch (const std::exception& e)

@@ -35,11 +35,12 @@ void GroundMapperConfig::validate() const
     throw std::invalid_argument("GroundMapperConfig: ceiling_height_m must be finite and above floor_clearance_m");
   }
   floor.validate();
+  density.validate();
   octree.validate();
 }
 
 GroundMapper::GroundMapper(const GroundMapperConfig& config)
-  : config_((config.validate(), config)), detector_(config.floor)
+  : config_((config.validate(), config)), detector_(config.floor), density_(config.density)
 {
   if (config_.octree_enabled)
   {
@@ -59,13 +60,13 @@ void GroundMapper::reset()
   }
 }
 
-GroundMapperResult GroundMapper::process(const PointList& points, const std::vector<Eigen::Vector3d>& cameras)
+GroundMapperResult GroundMapper::process(const PointList& input, const std::vector<Eigen::Vector3d>& cameras)
 {
   GroundMapperResult r;
   StageTimer timer(r.stages_ms);
   if (!has_floor_ || !config_.keep_floor)
   {
-    const FloorResult found = detector_.detect(points);
+    const FloorResult found = detector_.detect(input);
     if (found.found)
     {
       const bool moved = has_floor_ && (found.plane.normal != floor_.plane.normal || found.plane.d != floor_.plane.d);
@@ -95,6 +96,8 @@ GroundMapperResult GroundMapper::process(const PointList& points, const std::vec
   }
   r.floor = floor_;
   timer.lap("floor");
+  const PointList points = density_.apply(input, &r.density);
+  timer.lap("density");
 
   const FloorPlane& plane = floor_.plane;
   r.to_output = config_.align_to_floor ? alignToFloor(plane) : Eigen::Isometry3d::Identity();

@@ -13,24 +13,16 @@ void CloudFilterNodelet::onInit()
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
   loadParam(pnh, "max_abs_coordinate_m", guard_config_.max_abs_coordinate);
-  std::string method = "radius";
-  loadParam(pnh, "density_method", method);
-  density_config_.method = densityMethodFromString(method);
-  loadParam(pnh, "density_radius_m", density_config_.radius_m);
-  loadParam(pnh, "density_min_neighbors", density_config_.min_neighbors);
-  loadParam(pnh, "ipcl_rounds", density_config_.ipcl_rounds);
   loadParam(pnh, "voxel_enabled", voxel_enabled_);
   loadParam(pnh, "leaf_size_m", voxel_config_.leaf_size_m);
   loadParam(pnh, "max_points", max_points_);
   guard_config_.validate();
-  density_config_.validate();
   voxel_config_.validate();
 
   pub_ = nh.advertise<sensor_msgs::PointCloud2>("cloud/filtered", 2);
   diag_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
   sub_ = nh.subscribe("slam/points", 2, &CloudFilterNodelet::onCloud, this);
-  NODELET_INFO("cloud_filter: density %s (radius %.3f m, >= %d neighbours), leaf %.3f m", method.c_str(),
-               density_config_.radius_m, density_config_.min_neighbors, voxel_config_.leaf_size_m);
+  NODELET_INFO("cloud_filter: voxel grid %s, leaf %.3f m", voxel_enabled_ ? "on" : "off", voxel_config_.leaf_size_m);
 }
 
 void CloudFilterNodelet::diagnose(bool ok, const std::string& message)
@@ -79,7 +71,6 @@ void CloudFilterNodelet::onCloud(const sensor_msgs::PointCloud2ConstPtr& msg)
       diagnose(false, "empty cloud");
       return;
     }
-    points = DensityFilter(density_config_).apply(points);
     if (voxel_enabled_)
       points = VoxelFilter(voxel_config_).apply(points);
     n_in_ = n;

@@ -52,6 +52,12 @@ void GroundMapperNodelet::onInit()
   loadParam(pnh, "floor_min_inliers", config.floor.min_inliers);
   loadParam(pnh, "floor_max_planes", config.floor.max_planes);
   loadParam(pnh, "keep_floor", config.keep_floor);
+  std::string density_method = "radius";
+  loadParam(pnh, "density_method", density_method);
+  config.density.method = densityMethodFromString(density_method);
+  loadParam(pnh, "density_radius_m", config.density.radius_m);
+  loadParam(pnh, "density_min_neighbors", config.density.min_neighbors);
+  loadParam(pnh, "ipcl_rounds", config.density.ipcl_rounds);
   loadParam(pnh, "floor_clearance_m", config.floor_clearance_m);
   loadParam(pnh, "ceiling_height_m", config.ceiling_height_m);
   loadParam(pnh, "octree_resolution_m", config.octree.resolution_m);

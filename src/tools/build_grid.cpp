@@ -69,7 +69,7 @@ std::string usage()
       "  --json                  print {\"n_points\", \"stages_ms\", \"total_ms\", floor, grid} on stdout,\n"
       "                          with --update also \"update\": {\"stages_ms\", \"total_ms\", ..}\n",
       d.grid.resolution_m, d.ground.floor.max_tilt_deg, d.ground.floor.distance_threshold_m, d.ground.floor.max_planes,
-      d.ground.floor_clearance_m, d.ground.ceiling_height_m, d.density.radius_m, d.density.min_neighbors,
+      d.ground.floor_clearance_m, d.ground.ceiling_height_m, d.ground.density.radius_m, d.ground.density.min_neighbors,
       d.voxel.leaf_size_m, d.grid.alpha.alpha_m, d.ground.octree.free_space_resolution_m / d.ground.octree.resolution_m);
   return buf;
 }
@@ -160,11 +160,11 @@ Args parseArgs(int argc, char** argv)
     else if (arg == "--ceiling-height")
       a.config.ground.ceiling_height_m = number(arg, value());
     else if (arg == "--density")
-      a.config.density.method = sparse_nav::densityMethodFromString(value());
+      a.config.ground.density.method = sparse_nav::densityMethodFromString(value());
     else if (arg == "--density-radius")
-      a.config.density.radius_m = number(arg, value());
+      a.config.ground.density.radius_m = number(arg, value());
     else if (arg == "--min-neighbors")
-      a.config.density.min_neighbors = static_cast<int>(number(arg, value()));
+      a.config.ground.density.min_neighbors = static_cast<int>(number(arg, value()));
     else if (arg == "--leaf")
     {
       const double leaf = number(arg, value());

@@ -8,6 +8,7 @@
 #include "sparse_nav/core/ground_mapper.h"
 #include "synthetic.h"
 
+using sparse_nav::DensityMethod;
 using sparse_nav::GridPipeline;
 using sparse_nav::GridPipelineConfig;
 using sparse_nav::GridPipelineResult;
@@ -62,7 +63,10 @@ TEST(GroundMapper, BandsAreMeasuredFromTheFloorAndRaysStayInTheBand)
 
 TEST(GroundMapper, FreeSpaceFilterDropsAStrayPointInSpaceTheRaysCrossed)
 {
-  GroundMapper mapper(mapFrameConfig());
+  // The density filter would drop the lone stray point first; this is the free-space filter's test.
+  GroundMapperConfig config = mapFrameConfig();
+  config.density.method = DensityMethod::kNone;
+  GroundMapper mapper(config);
   const Eigen::Vector3d camera(2.5, 2.0, 1.2);
   // The SLAM map grows over three updates (new wall points each time); every update's new rays
   // cross the room's interior.
@@ -94,7 +98,7 @@ TEST(GroundMapper, FreeSpaceFilterDropsAStrayPointInSpaceTheRaysCrossed)
   EXPECT_GT(r.obstacles.size(), n_room / 2);
 
   // Without the filter the same point stays.
-  GroundMapperConfig cfg = mapFrameConfig();
+  GroundMapperConfig cfg = config;
   cfg.free_space_filter = false;
   GroundMapper unfiltered(cfg);
   EXPECT_EQ(unfiltered.process(room, { camera }).n_freed, 0u);
@@ -152,4 +156,30 @@ TEST(GridPipeline, IncrementalUpdateEqualsAFullRebuildOnTheSamePoints)
     differ += a.data[i] != b.data[i] ? 1 : 0;
   }
   EXPECT_EQ(differ, 0u);
+}
+
+TEST(GroundMapper, TheFloorIsFoundBeforeTheDensityFilterThinsIt)
+{
+  // Walls from 0.3 m up, a floor of isolated points 0.6 m apart (monocular floors are sparse) and a lone
+  // stray point in the room: the density filter (0.3 m, 5 neighbours) would leave no floor, so
+  // the floor is searched first and the filter only thins what goes on to the octree and grid.
+  PointList cloud;
+  sparse_nav::test::addWall(cloud, 0, 0, 6, 0, 0.3, 2.4, 0.15);
+  sparse_nav::test::addWall(cloud, 6, 0, 6, 5, 0.3, 2.4, 0.15);
+  sparse_nav::test::addWall(cloud, 6, 5, 0, 5, 0.3, 2.4, 0.15);
+  sparse_nav::test::addWall(cloud, 0, 5, 0, 0, 0.3, 2.4, 0.15);
+  sparse_nav::test::addFloor(cloud, 0.3, 0.3, 5.7, 4.7, 0.6);
+  cloud.emplace_back(3.0f, 2.5f, 1.0f);
+  GroundMapper mapper(mapFrameConfig());
+  const GroundMapperResult r = mapper.process(cloud, { Eigen::Vector3d(3.0, 2.5, 1.2) });
+  ASSERT_TRUE(r.ok) << r.status;
+  EXPECT_NEAR(r.floor.plane.height(), 0.0, 0.03);
+  EXPECT_NEAR(r.floor.plane.tilt_deg, 0.0, 0.5);
+  EXPECT_EQ(r.density.n_in, cloud.size());
+  EXPECT_LT(r.density.n_out, cloud.size());
+  for (const auto& p : r.obstacles)
+  {
+    EXPECT_FALSE(std::abs(p.x() - 3.0f) < 0.01f && std::abs(p.y() - 2.5f) < 0.01f) << "the stray point was kept";
+  }
+  EXPECT_GT(r.stages_ms.count("density"), 0u);
 }

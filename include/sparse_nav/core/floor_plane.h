@@ -44,7 +44,8 @@ struct FloorDetectorConfig
   double wall_radius_m = 0.3;          ///< neighbourhood of the wall-normal estimate [m]
   /// A fitted floor whose normal is further than this from the walls' up is taken for a slab of
   /// wall bottoms; the floor is then perpendicular to the walls at their lower envelope [deg].
-  double max_wall_disagreement_deg = 1.0;
+  /// Generous: monocular depth noise fans walls out by 1-3 deg, so the walls' up is no finer.
+  double max_wall_disagreement_deg = 5.0;
   std::size_t max_fit_points = 10000;  ///< larger clouds are subsampled (fixed stride)
 
   /// @brief Throws std::invalid_argument when a value is out of range.
@@ -87,9 +88,12 @@ struct FloorResult
  * slab holds the most points wins (a wrong normal touches the floor only along one edge). The
  * plane is then refitted by least squares to the points within distance_threshold_m, twice, with
  * the second pass at half the distance. A floor needs min_inliers, min_inlier_fraction, contrast
- * against the slab beneath it and few points below it. When the best lower envelope within 45 deg
- * is tilted beyond max_tilt_deg and holds more points than every one within the limit, the result
- * is "no floor" (the floor is tilted too much) rather than a guess. Deterministic.
+ * against the slab beneath it and few points below it. Only when the envelope is rejected does
+ * sample consensus (PCL, up to max_planes planes, the lowest well-supported one) get a say. When
+ * the best floor-like plane within 45 deg is tilted beyond max_tilt_deg and holds more points than
+ * every one within the limit, the result is "no floor" (the floor is tilted too much) rather than
+ * a guess. Deterministic. Give it the cloud before any density filter: isolated floor points are
+ * what it needs.
  */
 class FloorDetector
 {

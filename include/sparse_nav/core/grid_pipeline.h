@@ -24,7 +24,6 @@ struct GridPipelineConfig
   /// camera height, known motions); 1 treats SLAM units as metres.
   double metres_per_unit = 1.0;
   PointGuardConfig guard;
-  DensityFilterConfig density;
   bool voxel_enabled = true;
   VoxelFilterConfig voxel;
   /// Floor, alignment, octree, bands and free-space filter. keep_floor and align_to_floor are true
@@ -43,7 +42,7 @@ struct GridPipelineResult
   std::string status;  ///< summary, or what went wrong when !ok
   std::size_t n_points = 0;
   PointGuardStats guard;
-  DensityFilterStats density;
+  DensityFilterStats density;  ///< counts of GroundMapper's density filter
   VoxelFilterStats voxel;
   FloorResult floor;
   Eigen::Isometry3d slam_to_map = Eigen::Isometry3d::Identity();  ///< SLAM frame (scaled) -> map
@@ -58,11 +57,11 @@ struct GridPipelineResult
 };
 
 /**
- * @brief The perception chain from SLAM map points to an occupancy grid: guard, scale, density
- * filter, voxel grid, then GroundMapper (floor plane, alignment to the z-up map frame, octree with
+ * @brief The perception chain from SLAM map points to an occupancy grid: guard, scale, voxel grid,
+ * then GroundMapper (floor plane, density filter, alignment to the z-up map frame, octree with
  * free space ray-cast from the cameras, floor/ceiling band removal, free-space filter), then
  * GridBuilder (alpha shapes and rasterisation, with dirty-tile incremental updates). The nodelets
- * cloud_filter, ground_mapper and grid_builder run the same three stages. Calling process() again
+ * cloud_filter (guard, voxel grid), ground_mapper and grid_builder run the same three stages. Calling process() again
  * with a changed cloud is an incremental update: the octree casts rays only for new points and the
  * grid recomputes only the tiles whose obstacles or rays changed. Never throws on bad data;
  * problems are reported in the result.
@@ -95,7 +94,6 @@ public:
 private:
   GridPipelineConfig config_;
   PointGuard guard_;
-  DensityFilter density_;
   VoxelFilter voxel_;
   GroundMapper ground_;
   GridBuilder builder_;

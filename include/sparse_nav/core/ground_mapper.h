@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 
+#include "sparse_nav/core/cloud_filters.h"
 #include "sparse_nav/core/floor_plane.h"
 #include "sparse_nav/core/grid_builder.h"
 #include "sparse_nav/core/octree_map.h"
@@ -26,6 +27,9 @@ struct GroundMapperConfig
   /// true: the output frame is alignToFloor(floor) (z up, floor at z = 0), for SLAM-frame input.
   /// false: the output frame is the input frame (input already in the z-up map frame).
   bool align_to_floor = true;
+  /// Removes isolated points after the floor is found and before the octree: monocular floors are
+  /// sparse, so a density filter ahead of the floor search strips the floor it looks for.
+  DensityFilterConfig density;
   double floor_clearance_m = 0.15;  ///< points lower than this above the floor are floor [m]
   double ceiling_height_m = 2.2;    ///< points higher than this above the floor are ceiling [m]
   bool octree_enabled = true;
@@ -48,6 +52,7 @@ struct GroundMapperResult
   std::string floor_warning;   ///< why this cloud showed no floor when the last one found is kept
   Eigen::Isometry3d to_output = Eigen::Isometry3d::Identity();  ///< input frame -> output frame
   std::vector<Eigen::Vector3d> cameras;  ///< camera positions used, output frame [m]
+  DensityFilterStats density;  ///< the density filter's counts (the points it kept go on)
   PointList obstacles;     ///< points between the floor band and the ceiling band, not proven free
   PointList floor_points;  ///< points within floor_clearance_m of the floor plane
   std::vector<FreeRay> rays;  ///< per point, the part of its ray from the nearest camera inside the band (x-y)
@@ -55,11 +60,11 @@ struct GroundMapperResult
   std::size_t n_ceiling_band = 0;  ///< points above ceiling_height_m
   std::size_t n_freed = 0;         ///< band points dropped because their voxel is free
   OctreeInsertStats octree;
-  std::map<std::string, double> stages_ms;  ///< "floor", "align", "octree", "slice" [ms]
+  std::map<std::string, double> stages_ms;  ///< "floor", "density", "align", "octree", "slice" [ms]
 };
 
 /**
- * @brief The ground stage of the perception chain: floor plane, alignment, OctoMap octree with
+ * @brief The ground stage of the perception chain: floor plane, density filter, alignment, OctoMap octree with
  * free space ray-cast from the cameras, floor and ceiling bands measured from the floor plane,
  * the free-space filter of obstacle points, and the free rays inside the band.
  *
@@ -74,7 +79,7 @@ public:
   ~GroundMapper();
 
   /**
-   * @param points filtered cloud in the input frame [m]
+   * @param points guarded (and voxel-filtered) cloud in the input frame [m], outliers included
    * @param cameras camera positions in the input frame [m]; rays start at the nearest one. Empty:
    *        the input frame's origin (the first ORB-SLAM camera).
    */
@@ -93,6 +98,7 @@ public:
 private:
   GroundMapperConfig config_;
   FloorDetector detector_;
+  DensityFilter density_;
   std::unique_ptr<OctreeMap> octree_;
   bool has_floor_ = false;
   FloorResult floor_;

@@ -13,8 +13,8 @@
 namespace sparse_nav
 {
 /**
- * @brief cloud_filter: finite-point and range guard, density filter (radius outlier removal or the
- * seed 000 IPCL) and voxel grid on the metric SLAM cloud.
+ * @brief cloud_filter: finite-point and range guard and voxel grid on the metric SLAM cloud. The
+ * density filter runs in ground_mapper, after the floor search: sparse floors must reach it.
  *
  * Subscribes `slam/points` (sensor_msgs/PointCloud2, metres, any frame); publishes
  * `cloud/filtered` in the same frame and `/diagnostics`. A bad cloud is refused with a throttled
@@ -30,7 +30,6 @@ private:
   void diagnose(bool ok, const std::string& message);
 
   PointGuardConfig guard_config_;
-  DensityFilterConfig density_config_;
   VoxelFilterConfig voxel_config_;
   bool voxel_enabled_ = true;
   int max_points_ = 5000000;  ///< larger clouds are refused (memory and latency bound)

@@ -315,6 +315,30 @@ void traverse(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca
   }
 }
 
+/// Interleaves the bits of x, y, z (16 bits each) into a Morton code (x lowest).
+std::uint64_t mortonCode(std::uint32_t x, std::uint32_t y, std::uint32_t z)
+{
+  std::uint64_t m = 0;
+  for (unsigned b = 0; b < 16; ++b)
+  {
+    m |= ((std::uint64_t{ x } >> b & 1U) << (3 * b)) | ((std::uint64_t{ y } >> b & 1U) << (3 * b + 1)) |
+         ((std::uint64_t{ z } >> b & 1U) << (3 * b + 2));
+  }
+  return m;
+}
+
+Cell mortonCell(std::uint64_t m)
+{
+  Cell c = Cell::Zero();
+  for (unsigned b = 0; b < 16; ++b)
+  {
+    c.x() |= static_cast<int>((m >> (3 * b)) & 1U) << b;
+    c.y() |= static_cast<int>((m >> (3 * b + 1)) & 1U) << b;
+    c.z() |= static_cast<int>((m >> (3 * b + 2)) & 1U) << b;
+  }
+  return c;
+}
+
 /// Applies a log-odds update to every leaf under node; unknown children become free leaves.
 void updateSubtree(octomap::OcTree& tree, octomap::OcTreeNode* node, unsigned depth, float log_odds)
 {
@@ -503,17 +527,38 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
   {
     const float miss = tree_->getProbMissLog();
     const unsigned target_depth = tree_->getTreeDepth() - levels;
+    // Free cells in Morton order; an aligned run of 8^k consecutive codes is a whole octree node
+    // k levels above the coarse leaves, updated once (most of a room's volume is such blocks).
+    std::vector<std::uint64_t> free_cells;
     marks.forEach([&](const Cell& c, std::uint8_t bits) {
-      if (bits != CellMarks::kRay)
+      if (bits == CellMarks::kRay)
       {
-        return;
+        free_cells.push_back(mortonCode(static_cast<std::uint32_t>(c.x()), static_cast<std::uint32_t>(c.y()),
+                                        static_cast<std::uint32_t>(c.z())));
       }
+    });
+    std::sort(free_cells.begin(), free_cells.end());
+    stats.n_free_voxels = free_cells.size();
+    for (std::size_t i = 0; i < free_cells.size();)
+    {
+      const std::uint64_t code = free_cells[i];
+      unsigned up = 0;
+      while (up < target_depth)
+      {
+        const std::uint64_t span = std::uint64_t{ 1 } << (3 * (up + 1));
+        if ((code & (span - 1)) != 0 || i + span > free_cells.size() || free_cells[i + span - 1] != code + span - 1)
+        {
+          break;
+        }
+        ++up;
+      }
+      const Cell c = mortonCell(code >> (3 * up)) * (1 << up);
       const octomap::OcTreeKey key(static_cast<octomap::key_type>(c.x() << levels),
                                    static_cast<octomap::key_type>(c.y() << levels),
                                    static_cast<octomap::key_type>(c.z() << levels));
-      updateAtDepth(*tree_, root, false, key, 0, target_depth, miss);
-      ++stats.n_free_voxels;
-    });
+      updateAtDepth(*tree_, root, false, key, 0, target_depth - up, miss);
+      i += std::size_t{ 1 } << (3 * up);
+    }
   }
   return stats;
 }

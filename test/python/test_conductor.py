@@ -193,6 +193,56 @@ def test_tracking_lost_inside_or_near_the_outline_or_without_one_relocalises():
     assert m.conductor.state == State.LOST
 
 
+def test_passing_through_a_false_exit_and_staying_in_the_room_tries_the_next_candidate():
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m.tick(start_requested=True)
+    m.run_scan()
+    # The best candidate (2, 0) lies in the room's free middle; (5.9, 0) is on its east wall.
+    m.tick(exit_answered=True, exit_xy=(2.0, 0.0), exit_alternatives=((2.5, 0.4), (5.9, 0.0)),
+           room_outline=ROOM)
+    m.tick(robot_xy=(2.0, 0.0), navigator_state="reached")
+    assert m.conductor.phase == Phase.PASS_THROUGH
+    m.tick(navigator_state="following")
+    actions = m.tick(robot_xy=(3.5, 0.0), navigator_state="reached")  # 1 m inside the outline
+    # (2.5, 0.4) is within rejected_exit_radius_m of the false exit: skipped too.
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (5.9, 0.0))]
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
+    assert "inside the room outline: not an exit" in m.conductor.reason
+    m.tick(navigator_state="following")
+    m.tick(robot_xy=(5.9, 0.0), navigator_state="reached")
+    m.tick(navigator_state="following")
+    assert kinds(m.tick(robot_xy=(7.4, 0.0), navigator_state="reached")) == [ActionKind.STOP]
+    assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
+
+
+def test_a_false_exit_without_alternatives_asks_again_and_never_takes_it_twice():
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(2.0, 0.0), room_outline=ROOM)
+    m.tick(robot_xy=(2.0, 0.0), navigator_state="reached")
+    m.tick(navigator_state="following")
+    actions = m.tick(robot_xy=(3.5, 0.0), navigator_state="reached")
+    assert kinds(actions) == [ActionKind.FIND_EXIT]
+    # The same answer again: not driven to; the conductor scans more and asks once more.
+    actions = m.tick(exit_answered=True, exit_xy=(2.1, 0.1), exit_alternatives=())
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
+    assert "only exits already passed through" in m.conductor.reason
+    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
+    actions = m.tick(exit_answered=True, exit_xy=(2.0, 0.0))
+    assert (m.conductor.phase, kinds(actions)) == (Phase.GAVE_UP,
+                                                   [ActionKind.CANCEL_GOAL, ActionKind.STOP])
+
+
+def test_passing_through_near_the_outline_or_without_one_is_done():
+    m = passing_through()  # exit (5, 0), 1 m inside ROOM's east wall
+    m.tick(robot_xy=(5.8, 0.0), navigator_state="reached")  # 0.2 m inside: within the margin
+    assert m.conductor.phase == Phase.DONE
+    m = passing_through()
+    m.tick(robot_xy=(3.0, 0.0), room_outline=(), navigator_state="reached")
+    assert m.conductor.phase == Phase.DONE
+
+
 def test_not_initialised_slam_is_not_a_loss():
     m = Mission()
     m.tick(start_requested=True)

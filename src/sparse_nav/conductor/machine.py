@@ -100,6 +100,9 @@ class ConductorConfig:
     exit_min_free_share: float = 0.1     # at least this share free there go first
     reached_tolerance_m: float = 0.4     # the navigator's "reached" or this close counts
     left_room_margin_m: float = 1.0      # lost this far outside the outline passing through: out
+    inside_room_margin_m: float = 0.5    # passed through yet this far inside the outline: the
+    rejected_exit_radius_m: float = 1.0  # ... exit was wrong; later candidates this close to it
+                                         # are skipped
     stall_timeout_s: float = 30.0        # no progress toward a goal for this long: a goal failure
     stall_progress_m: float = 0.2        # ... progress: this much closer than ever before
     exit_near_m: float = 1.0             # stalled this close to the exit: pass through from there
@@ -112,6 +115,7 @@ class ConductorConfig:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
                      "lost_timeout_s", "recover_timeout_s", "left_room_margin_m",
+                     "inside_room_margin_m", "rejected_exit_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -139,13 +143,22 @@ _FAILED_NAVIGATION = ("no_path", "goal_in_obstacle")
 def distance_outside(xy, outline):
     """How far (same units) the point xy lies outside the polygon outline; 0 inside it or
     when there is no outline (fewer than three vertices)."""
+    return max(0.0, _signed_distance_outside(xy, outline))
+
+
+def distance_inside(xy, outline):
+    """How far the point xy lies inside the polygon outline (from its boundary); 0 outside it or
+    when there is no outline."""
+    return max(0.0, -_signed_distance_outside(xy, outline))
+
+
+def _signed_distance_outside(xy, outline):
     poly = np.asarray(outline, dtype=float).reshape(-1, 2)
     if len(poly) < 3 or xy is None:
         return 0.0
     q = np.asarray(xy, dtype=float).reshape(1, 2)
-    if points_in_polygon(q, poly)[0]:
-        return 0.0
-    return float(boundary_distances(q, poly)[0][0])
+    d = float(boundary_distances(q, poly)[0][0])
+    return -d if points_in_polygon(q, poly)[0] else d
 
 
 class Conductor:
@@ -161,6 +174,7 @@ class Conductor:
         self.start_xy: Optional[Tuple[float, float]] = None
         self.exit_xy: Optional[Tuple[float, float]] = None
         self._alternatives: List[Tuple[float, float]] = []
+        self._rejected: List[Tuple[float, float]] = []  # exits passed through without leaving
         self.goal_xy: Optional[Tuple[float, float]] = None
         self._resume_state = State.IDLE
         self._scan_rounds = 0
@@ -230,6 +244,7 @@ class Conductor:
     def _begin(self, t, obs):
         self.start_xy = obs.robot_xy
         self.exit_xy = self.goal_xy = None
+        self._rejected = []
         self._scan_rounds = 1
         self._exit_attempts = 0
         self._set(t, State.START, Phase.INITIAL_SCAN, "mission started: initial scan")
@@ -343,15 +358,21 @@ class Conductor:
             self._set(t, State.START, Phase.WALL_SCAN, "the map shows no way out beyond the "
                       "exits found: scan more")
             return [self._scan("random")]
+        candidates = []
         if obs.exit_answered and obs.exit_xy is not None:
-            self.exit_xy = tuple(obs.exit_xy)
-            self._alternatives = [tuple(xy) for xy in obs.exit_alternatives]
+            candidates = [c for c in [tuple(obs.exit_xy)] + [tuple(xy) for xy in obs.exit_alternatives]
+                          if not self._was_rejected(c)]
+        if candidates:
+            self.exit_xy = candidates[0]
+            self._alternatives = candidates[1:]
             return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
                                   f"exit found at ({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
         timed_out = t - self._exit_requested_s > cfg.exit_answer_timeout_s
         if not (obs.exit_answered or timed_out):
             return []
-        why = "no exit in the map" if obs.exit_answered else "the exit finder did not answer"
+        why = ("no exit in the map" if obs.exit_answered and obs.exit_xy is None
+               else "only exits already passed through without leaving the room"
+               if obs.exit_answered else "the exit finder did not answer")
         if self._exit_attempts >= cfg.max_exit_attempts:
             return self._give_up(t, f"{why} after {self._exit_attempts} attempts")
         self._set(t, State.START, Phase.WALL_SCAN, f"{why}: scan more")
@@ -387,6 +408,11 @@ class Conductor:
             if self.phase == Phase.GO_TO_EXIT:
                 target = self._beyond_exit()
                 return self._navigate(t, Phase.PASS_THROUGH, target, "at the exit: pass through")
+            inside = distance_inside(obs.robot_xy, obs.room_outline)
+            if self.phase == Phase.PASS_THROUGH and inside >= cfg.inside_room_margin_m:
+                return self._wrong_exit(t, f"passed through ({self.exit_xy[0]:.2f}, "
+                                           f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the "
+                                           "room outline: not an exit")
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit" if self.phase ==
                       Phase.PASS_THROUGH else "back at the start")
             return [Action(ActionKind.STOP)]
@@ -417,6 +443,22 @@ class Conductor:
         else:
             self._failure_since_s = None
         return []
+
+    def _was_rejected(self, xy):
+        return any(math.dist(xy, r) < self.config.rejected_exit_radius_m for r in self._rejected)
+
+    def _wrong_exit(self, t, why):
+        """The exit led nowhere: the next candidate not near a rejected one, else ask again."""
+        self._rejected.append(self.exit_xy)
+        self._alternatives = [c for c in self._alternatives if not self._was_rejected(c)]
+        if self._alternatives:
+            self.exit_xy = self._alternatives.pop(0)
+            return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
+                                  f"{why}; next candidate ({self.exit_xy[0]:.2f}, "
+                                  f"{self.exit_xy[1]:.2f})")
+        if self._exit_attempts < self.config.max_exit_attempts:
+            return self._ask_exit(t, f"{why}; look for the exit again")
+        return self._give_up(t, f"{why}, and no candidate is left")
 
     def _beyond_exit(self):
         """A point pass_through_m past the exit, on the line from the start through the exit."""

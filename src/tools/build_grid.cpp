@@ -348,9 +348,16 @@ int main(int argc, char** argv)
     json << "}";
   };
 
-  if (!result.ok)
+  // A cloud whose points all fall outside the obstacle band and cast no free ray gives no grid.
+  const bool empty_grid = result.ok && (pipeline.grid().width == 0 || pipeline.grid().height == 0);
+  if (!result.ok || empty_grid)
   {
-    std::string message = result.status;
+    std::string message = empty_grid ? "no grid to write: " + result.status : result.status;
+    if (empty_grid && args.config.metres_per_unit == 1.0)
+    {
+      message += " (without --scale the floor and ceiling bands are in SLAM units, and a small monocular map "
+                 "fits inside the floor band)";
+    }
     if (!result.floor.found && !result.floor.reason.empty())
     {
       char buf[400];

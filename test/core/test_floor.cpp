@@ -49,6 +49,30 @@ TEST(FloorDetector, NoFloorForA25DegreeTiltAndTheReasonSaysSo)
   EXPECT_NEAR(r.best_plane_tilt_deg, 25.0, 1.0);
 }
 
+TEST(FloorDetector, AFloorTiltedJustBeyondTheLimitWithoutWallsIsReported)
+{
+  // A dense floor and sparse clutter above it, no walls to tell up: the floor's 21 deg tilt must be
+  // reported, not a floor at the edge of the 15 deg cone.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 6.0f), h(0.3f, 2.5f);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  PointList room;
+  for (int i = 0; i < 3000; ++i)
+  {
+    room.emplace_back(u(rng), u(rng), noise(rng));
+  }
+  for (int i = 0; i < 800; ++i)
+  {
+    room.emplace_back(u(rng), u(rng), h(rng));
+  }
+  const Eigen::Isometry3d tilt(Eigen::AngleAxisd(21.0 * M_PI / 180.0, Eigen::Vector3d::UnitX()));
+  const FloorResult r =
+      FloorDetector().detect(sparse_nav::transformPoints(room, sparse_nav::test::zUpToYDown() * tilt));
+  EXPECT_FALSE(r.found) << "tilt " << r.plane.tilt_deg;
+  EXPECT_NE(r.reason.find("no floor plane within 15.0 deg"), std::string::npos) << r.reason;
+  EXPECT_NEAR(r.best_plane_tilt_deg, 21.0, 1.5);
+}
+
 TEST(FloorDetector, NoFloorInACloudWithoutPlanes)
 {
   std::mt19937 rng(11);

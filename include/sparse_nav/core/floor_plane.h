@@ -106,6 +106,7 @@ public:
 private:
   FloorResult detectByConsensus(const PointList& points) const;
   FloorResult detectByEnvelope(const PointList& points) const;
+  FloorResult tiltedBeyondTheLimit(const PointList& points, const FloorResult& envelope) const;
 
   FloorDetectorConfig config_;
 };

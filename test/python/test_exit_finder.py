@@ -185,3 +185,26 @@ def test_seed_answer_moves_with_the_input(angle, scale, shift):
     corners = transform(np.array(base.room_corners), angle, scale, shift)
     for c in moved.room_corners:
         assert np.min(np.hypot(*(corners - c).T)) < 0.25 * scale
+
+
+def test_gaps_falls_back_to_the_estimated_viewpoint_when_the_given_one_shows_no_exit(monkeypatch):
+    from sparse_nav.exit_finder import gaps
+    real = gaps.find_gaps
+    calls = []
+
+    def origin_blind(q, cfg, rng=None, external=None, viewpoint=None):
+        calls.append(viewpoint)
+        found = real(q, cfg, rng, external, viewpoint)
+        if viewpoint is not None:  # as if the door were hidden from the given viewpoint
+            return dataclasses.replace(found, exits=[])
+        return found
+
+    monkeypatch.setattr(gaps, "find_gaps", origin_blind)
+    r = find_exit(ROOM2, method="gaps", viewpoint=tuple(VIEW))
+    assert calls[0] is not None and calls[1] is None
+    assert r.status == "ok" and r.exits
+    assert "from the viewpoint the cloud suggests" in r.reason
+    # An exit found from the given viewpoint needs no second search.
+    calls.clear()
+    monkeypatch.setattr(gaps, "find_gaps", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
+    assert find_exit(ROOM2, method="gaps", viewpoint=tuple(VIEW)).exits and len(calls) == 1

@@ -3,22 +3,14 @@
 Skipped when the workspace with the tool is not built and sourced.
 """
 import json
-import os
 import subprocess
 
 import numpy as np
 import pytest
 
+from workspace_tools import find_tool
 
-def find_tool():
-    for prefix in os.environ.get("CMAKE_PREFIX_PATH", "").split(os.pathsep):
-        path = os.path.join(prefix, "lib", "sparse_nav", "build_grid")
-        if prefix and os.access(path, os.X_OK):
-            return path
-    return None
-
-
-TOOL = find_tool()
+TOOL = find_tool("build_grid")
 pytestmark = pytest.mark.skipif(TOOL is None, reason="build_grid not built (source the workspace)")
 
 

@@ -8,18 +8,12 @@ import subprocess
 
 import pytest
 
+from workspace_tools import find_tool
+
 FIXTURES = os.path.join(os.path.dirname(__file__), "..", "fixtures", "laser")
 
 
-def find_tool():
-    for prefix in os.environ.get("CMAKE_PREFIX_PATH", "").split(os.pathsep):
-        path = os.path.join(prefix, "lib", "sparse_nav", "extract_features")
-        if prefix and os.access(path, os.X_OK):
-            return path
-    return None
-
-
-TOOL = find_tool()
+TOOL = find_tool("extract_features")
 pytestmark = pytest.mark.skipif(TOOL is None, reason="extract_features not built (source the workspace)")
 
 

@@ -173,7 +173,11 @@ class MotionNode:
             else:
                 decision = self._drone_step(now)
             if decision is not None:
-                self._publish_status(decision)
+                try:
+                    self._publish_status(decision)
+                except rospy.ROSException:
+                    if not rospy.is_shutdown():
+                        raise  # a tick racing the shutdown finds its topics closed: harmless
             self.last_tick_s = now
 
     def _ground_step(self, now):

@@ -79,11 +79,11 @@ public:
   ~GroundMapper();
 
   /**
-   * @param points guarded (and voxel-filtered) cloud in the input frame [m], outliers included
+   * @param input guarded (and voxel-filtered) cloud in the input frame [m], outliers included
    * @param cameras camera positions in the input frame [m]; rays start at the nearest one. Empty:
    *        the input frame's origin (the first ORB-SLAM camera).
    */
-  GroundMapperResult process(const PointList& points, const std::vector<Eigen::Vector3d>& cameras);
+  GroundMapperResult process(const PointList& input, const std::vector<Eigen::Vector3d>& cameras);
 
   /// @brief Forgets the floor and the octree.
   void reset();

@@ -234,6 +234,21 @@ def test_a_false_exit_without_alternatives_asks_again_and_never_takes_it_twice()
                                                    [ActionKind.CANCEL_GOAL, ActionKind.STOP])
 
 
+def test_an_exit_rejected_in_one_slam_map_is_not_skipped_in_another():
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m.obs.slam_map_index = 0
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(2.0, 0.0), room_outline=ROOM)
+    m.tick(robot_xy=(2.0, 0.0), navigator_state="reached")
+    m.tick(navigator_state="following")
+    assert kinds(m.tick(robot_xy=(3.5, 0.0), navigator_state="reached")) == [ActionKind.FIND_EXIT]
+    # A new SLAM map: its coordinates say nothing about the old one's, so (2.0, 0.0) is a fresh
+    # candidate there.
+    actions = m.tick(exit_answered=True, exit_xy=(2.0, 0.0), slam_map_index=1)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (2.0, 0.0))]
+
+
 def test_passing_through_near_the_outline_or_without_one_is_done():
     m = passing_through()  # exit (5, 0), 1 m inside ROOM's east wall
     m.tick(robot_xy=(5.8, 0.0), navigator_state="reached")  # 0.2 m inside: within the margin

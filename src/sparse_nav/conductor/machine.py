@@ -174,7 +174,8 @@ class Conductor:
         self.start_xy: Optional[Tuple[float, float]] = None
         self.exit_xy: Optional[Tuple[float, float]] = None
         self._alternatives: List[Tuple[float, float]] = []
-        self._rejected: List[Tuple[float, float]] = []  # exits passed through without leaving
+        # Exits passed through without leaving the room, with the SLAM map they were drawn in.
+        self._rejected: List[Tuple[Optional[int], Tuple[float, float]]] = []
         self.goal_xy: Optional[Tuple[float, float]] = None
         self._resume_state = State.IDLE
         self._scan_rounds = 0
@@ -361,7 +362,7 @@ class Conductor:
         candidates = []
         if obs.exit_answered and obs.exit_xy is not None:
             candidates = [c for c in [tuple(obs.exit_xy)] + [tuple(xy) for xy in obs.exit_alternatives]
-                          if not self._was_rejected(c)]
+                          if not self._was_rejected(c, obs.slam_map_index)]
         if candidates:
             self.exit_xy = candidates[0]
             self._alternatives = candidates[1:]
@@ -410,9 +411,9 @@ class Conductor:
                 return self._navigate(t, Phase.PASS_THROUGH, target, "at the exit: pass through")
             inside = distance_inside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.PASS_THROUGH and inside >= cfg.inside_room_margin_m:
-                return self._wrong_exit(t, f"passed through ({self.exit_xy[0]:.2f}, "
-                                           f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the "
-                                           "room outline: not an exit")
+                return self._wrong_exit(
+                    t, obs.slam_map_index, f"passed through ({self.exit_xy[0]:.2f}, "
+                    f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the room outline: not an exit")
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit" if self.phase ==
                       Phase.PASS_THROUGH else "back at the start")
             return [Action(ActionKind.STOP)]
@@ -444,13 +445,15 @@ class Conductor:
             self._failure_since_s = None
         return []
 
-    def _was_rejected(self, xy):
-        return any(math.dist(xy, r) < self.config.rejected_exit_radius_m for r in self._rejected)
+    def _was_rejected(self, xy, map_index):
+        """Near an exit rejected in the same SLAM map (another map's coordinates say nothing)."""
+        return any(m == map_index and math.dist(xy, r) < self.config.rejected_exit_radius_m
+                   for m, r in self._rejected)
 
-    def _wrong_exit(self, t, why):
+    def _wrong_exit(self, t, map_index, why):
         """The exit led nowhere: the next candidate not near a rejected one, else ask again."""
-        self._rejected.append(self.exit_xy)
-        self._alternatives = [c for c in self._alternatives if not self._was_rejected(c)]
+        self._rejected.append((map_index, self.exit_xy))
+        self._alternatives = [c for c in self._alternatives if not self._was_rejected(c, map_index)]
         if self._alternatives:
             self.exit_xy = self._alternatives.pop(0)
             return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,

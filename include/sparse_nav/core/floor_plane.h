@@ -88,8 +88,11 @@ struct FloorResult
  * slab holds the most points wins (a wrong normal touches the floor only along one edge). The
  * plane is then refitted by least squares to the points within distance_threshold_m, twice, with
  * the second pass at half the distance. A floor needs min_inliers, min_inlier_fraction, contrast
- * against the slab beneath it and few points below it. Only when the envelope is rejected does
- * sample consensus (PCL, up to max_planes planes, the lowest well-supported one) get a say. When
+ * against the slab beneath it and few points below it. The envelope cannot see past its cone, so
+ * an envelope floor is checked by sample consensus in a 45 deg cone on a small sample: a plane
+ * beyond the limit with clearly more points means the floor is tilted too much. Only when the
+ * envelope is rejected does sample consensus (PCL, up to max_planes planes, the lowest
+ * well-supported one) find the floor. When
  * the best floor-like plane within 45 deg is tilted beyond max_tilt_deg and holds more points than
  * every one within the limit, the result is "no floor" (the floor is tilted too much) rather than
  * a guess. Deterministic. Give it the cloud before any density filter: isolated floor points are

@@ -427,18 +427,12 @@ class Conductor:
                 self._goal_failures += 1
                 self._failure_since_s = None
                 if self._goal_failures >= cfg.max_goal_failures:
-                    leaving = self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH)
-                    if leaving and self._alternatives:
+                    given_up = f"{failure} {self._goal_failures} times"
+                    if self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH):
                         # The finder ranks several exits: an unreachable one is likely wrong.
-                        failed, self.exit_xy = self.exit_xy, self._alternatives.pop(0)
-                        return self._navigate(
-                            t, Phase.GO_TO_EXIT, self.exit_xy,
-                            f"{failure} at the exit ({failed[0]:.2f}, {failed[1]:.2f}): next "
-                            f"candidate ({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
-                    if leaving and self._exit_attempts < cfg.max_exit_attempts:
-                        return self._ask_exit(t, f"{failure} on the way to the exit; "
-                                              "look for it again")
-                    return self._give_up(t, f"{failure} {self._goal_failures} times")
+                        return self._next_exit(t, f"{failure} at the exit ({self.exit_xy[0]:.2f}, "
+                                                  f"{self.exit_xy[1]:.2f})", given_up)
+                    return self._give_up(t, given_up)
                 self._progress = None
                 return [Action(ActionKind.GOAL, self.goal_xy)]
         else:
@@ -451,17 +445,22 @@ class Conductor:
                    for m, r in self._rejected)
 
     def _wrong_exit(self, t, map_index, why):
-        """The exit led nowhere: the next candidate not near a rejected one, else ask again."""
+        """The exit led nowhere: it and candidates near it are out of the running."""
         self._rejected.append((map_index, self.exit_xy))
         self._alternatives = [c for c in self._alternatives if not self._was_rejected(c, map_index)]
+        return self._next_exit(t, why, f"{why}, and no candidate is left")
+
+    def _next_exit(self, t, why, given_up):
+        """The finder's next candidate; else the finder again while attempts are left; else give
+        up with the reason given_up."""
         if self._alternatives:
             self.exit_xy = self._alternatives.pop(0)
             return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
-                                  f"{why}; next candidate ({self.exit_xy[0]:.2f}, "
+                                  f"{why}: next candidate ({self.exit_xy[0]:.2f}, "
                                   f"{self.exit_xy[1]:.2f})")
         if self._exit_attempts < self.config.max_exit_attempts:
             return self._ask_exit(t, f"{why}; look for the exit again")
-        return self._give_up(t, f"{why}, and no candidate is left")
+        return self._give_up(t, given_up)
 
     def _beyond_exit(self):
         """A point pass_through_m past the exit, on the line from the start through the exit."""

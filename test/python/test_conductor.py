@@ -457,6 +457,25 @@ def test_too_many_soft_fails_fail_the_scan():
     assert runner.failed and runner.done and runner.next_step() is None
 
 
+def test_a_lost_pose_is_a_soft_fail_except_in_the_relocalising_motion():
+    a, b = Step(forward_m=-0.3), Step(ccw_deg=60.0)
+    runner = ScanRunner([a, b])
+    runner.next_step()
+    runner.report_motion(moved=True, lost=True)
+    assert runner.next_step() == (a.undo(), 0.5)  # undone and tried again
+    relocalising = ScanRunner([a, b], while_lost=True)
+    done = []
+    while (item := relocalising.next_step()) is not None:
+        done.append(item)
+        relocalising.report_motion(moved=True, lost=True)
+    assert done == [(a, 1.0), (b, 1.0)]  # every step once, the turn included
+    assert not relocalising.failed
+    relocalising = ScanRunner([a, b], while_lost=True)
+    relocalising.next_step()
+    relocalising.report_motion(moved=False, lost=True)  # a motion refused is still a soft fail
+    assert relocalising.next_step() == (a.undo(), 0.5)
+
+
 def test_scan_runner_protocol_errors():
     runner = ScanRunner([Step(forward_m=0.3)])
     with pytest.raises(RuntimeError):

@@ -26,11 +26,17 @@ class ScanRunnerConfig:
 
 
 class ScanRunner:
-    """Hands out (step, speed factor) one at a time; the caller reports how each went."""
+    """Hands out (step, speed factor) one at a time; the caller reports how each went.
 
-    def __init__(self, steps: List[Step], config=None):
+    ``while_lost``: the scan is the relocalising motion, run while tracking is lost by
+    definition; a lost pose after a step is then no soft fail (undoing each step would rock the
+    robot on the spot and never reach the turn at the motion's end).
+    """
+
+    def __init__(self, steps: List[Step], config=None, while_lost: bool = False):
         self.config = config or ScanRunnerConfig()
         self.config.validate()
+        self.while_lost = while_lost
         self._todo: List[Tuple[Step, float, bool]] = [(s, 1.0, True) for s in reversed(steps)]
         self._current: Optional[Tuple[Step, float, bool]] = None
         self.succeeded: List[Step] = []
@@ -50,6 +56,11 @@ class ScanRunner:
             return None
         self._current = self._todo.pop()
         return self._current[0], self._current[1]
+
+    def report_motion(self, moved: bool, lost: bool):
+        """After the step from next_step(): whether the motion was carried out and whether SLAM
+        tracking is lost after it."""
+        self.report(moved and not (lost and not self.while_lost))
 
     def report(self, pose_known: bool):
         """After the step from next_step(): pose_known False is a soft fail."""

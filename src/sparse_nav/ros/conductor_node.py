@@ -170,16 +170,14 @@ class ConductorNode:
         steps = self._scan_steps(name, pose)
         rospy.loginfo("conductor: %s scan, %d steps", name, len(steps))
         self.scan_stop.clear()
-        # The relocalising motion runs while tracking is lost by definition: a lost pose is no
-        # soft fail there (undoing each step kept the robot rocking on the spot, never turning).
         self.scan_thread = threading.Thread(target=self._run_scan,
-                                            args=(steps, name != "relocalise"), daemon=True)
+                                            args=(steps, name == "relocalise"), daemon=True)
         self.scan_thread.start()
 
-    def _run_scan(self, steps, judge_tracking=True):
+    def _run_scan(self, steps, while_lost=False):
         if self.tello is not None and not self.took_off:
             self.took_off = all(self.tello.send(c) == "ok" for c in ("command", "takeoff"))
-        runner = ScanRunner(steps, self.runner_config)
+        runner = ScanRunner(steps, self.runner_config, while_lost)
         while not self.scan_stop.is_set() and not rospy.is_shutdown():
             item = runner.next_step()
             if item is None:
@@ -189,7 +187,7 @@ class ConductorNode:
             rospy.sleep(0.5)  # the bridge's state catches up with the last motion
             with self.lock:
                 lost = self.obs.tracking_lost
-            runner.report(done and not (lost and judge_tracking))
+            runner.report_motion(done, lost)
         with self.lock:
             self.obs.scan_failed = runner.failed
 

@@ -363,6 +363,31 @@ std::size_t keepFloorLike(std::vector<Candidate>& candidates, const pcl::PointCl
   candidates.erase(kept_end, candidates.end());
   return n_dropped;
 }
+
+/// Every stride-th point, at most max_points of them, as a PCL cloud (a fixed, deterministic sample).
+pcl::PointCloud<pcl::PointXYZ>::Ptr sampleCloud(const PointList& points, std::size_t max_points)
+{
+  const std::size_t stride = std::max<std::size_t>(1, (points.size() + max_points - 1) / max_points);
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  cloud->points.reserve(points.size() / stride + 1);
+  for (std::size_t i = 0; i < points.size(); i += stride)
+  {
+    cloud->points.emplace_back(points[i].x(), points[i].y(), points[i].z());
+  }
+  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
+  cloud->height = 1;
+  return cloud;
+}
+
+/// The two best floor-like planes within kWideConeDeg of up, most inliers first.
+std::vector<Candidate> wideFloorPlanes(const pcl::PointCloud<pcl::PointXYZ>::Ptr& cloud, const FloorDetectorConfig& cfg)
+{
+  std::vector<Candidate> wide = extractPlanes(cloud, cfg, kWideConeDeg, 2);
+  keepFloorLike(wide, *cloud, cfg);
+  std::sort(wide.begin(), wide.end(),
+            [](const Candidate& a, const Candidate& b) { return a.plane.n_inliers > b.plane.n_inliers; });
+  return wide;
+}
 }  // namespace
 
 Eigen::Vector3d axisFromString(const std::string& name)
@@ -476,16 +501,8 @@ FloorResult FloorDetector::tiltedBeyondTheLimit(const PointList& points, const F
   // envelope at the cone's edge (the EuRoC cloud, tilted 21 deg, gave one at 14.5 deg). Sample
   // consensus in the wide cone, on a small sample, tells: a floor-like plane beyond the limit with
   // clearly more inliers than the envelope's floor means the floor is tilted too much.
-  const std::size_t stride = (points.size() + kTiltCheckPoints - 1) / kTiltCheckPoints;
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  for (std::size_t i = 0; i < points.size(); i += stride)
-  {
-    cloud->points.emplace_back(points[i].x(), points[i].y(), points[i].z());
-  }
-  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
-  cloud->height = 1;
-  std::vector<Candidate> wide = extractPlanes(cloud, config_, kWideConeDeg, 2);
-  keepFloorLike(wide, *cloud, config_);
+  const pcl::PointCloud<pcl::PointXYZ>::Ptr cloud = sampleCloud(points, kTiltCheckPoints);
+  const std::vector<Candidate> wide = wideFloorPlanes(cloud, config_);
   const FloorPlane& floor = envelope.plane;
   std::size_t support = 0;
   for (const auto& p : cloud->points)
@@ -522,27 +539,14 @@ FloorResult FloorDetector::detectByConsensus(const PointList& points) const
                     std::to_string(config_.min_inliers) + ")";
     return result;
   }
-  const std::size_t stride = (points.size() + config_.max_fit_points - 1) / config_.max_fit_points;
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  cloud->points.reserve(points.size() / stride + 1);
-  for (std::size_t i = 0; i < points.size(); i += stride)
-  {
-    const auto& p = points[i];
-    cloud->points.emplace_back(p.x(), p.y(), p.z());
-  }
-  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
-  cloud->height = 1;
-
+  const pcl::PointCloud<pcl::PointXYZ>::Ptr cloud = sampleCloud(points, config_.max_fit_points);
   std::vector<Candidate> candidates = extractPlanes(cloud, config_, config_.max_tilt_deg, config_.max_planes);
   result.n_candidates = candidates.size();
   const std::size_t n_rejected_below = keepFloorLike(candidates, *cloud, config_);
   // The best-supported floor-like plane within 45 deg: when it is tilted beyond the limit and
   // better supported than every candidate, the floor is tilted too much and the candidates are
   // planes cutting through walls or furniture.
-  std::vector<Candidate> wide = extractPlanes(cloud, config_, kWideConeDeg, 2);
-  keepFloorLike(wide, *cloud, config_);
-  std::sort(wide.begin(), wide.end(),
-            [](const Candidate& a, const Candidate& b) { return a.plane.n_inliers > b.plane.n_inliers; });
+  const std::vector<Candidate> wide = wideFloorPlanes(cloud, config_);
   std::size_t candidate_support = 0;
   for (const auto& c : candidates)
   {

@@ -331,3 +331,51 @@ def test_make_plan_uses_the_newest_map():
     path, reason = nav.make_plan((1.0, 3.0), (7.05, 3.05))
     assert path == [] and "tolerance" in reason
     assert nav.make_plan((math.nan, 0.0), (1.0, 1.0))[0] == []
+
+
+def door_map(door_m):
+    """A wall across the map at x = 5 m with one door of door_m centred at y = 3 m."""
+    geometry, data = free_map()
+    wall(data, 5.0, 0.0, 3.0 - door_m / 2)
+    wall(data, 5.0, 3.0 + door_m / 2, 6.0)
+    return geometry, data
+
+
+def test_a_door_narrower_than_the_robot_radius_allows_is_squeezed_through_for_that_goal_only():
+    geometry, data = door_map(0.3)
+    nav = navigator(robot_radius_m=0.2, squeeze_radius_m=0.15)
+    nav.set_map(geometry, data)
+    nav.set_pose(2.0, 1.0, 0.0)
+    nav.set_goal(8.0, 1.0)
+    status = nav.update()
+    assert status.state == FOLLOWING and "squeezing through" in status.reason, status.reason
+    assert path_is_clear(nav, status.path)
+    crossing = [ya + (yb - ya) * (5.0 - xa) / (xb - xa)
+                for (xa, ya), (xb, yb) in zip(status.path, status.path[1:])
+                if min(xa, xb) <= 5.0 < max(xa, xb)]
+    assert crossing and abs(crossing[0] - 3.0) < 0.25, crossing  # through the door
+    assert drive(nav, status).state == REACHED
+    # The next goal is planned with the full radius again: back through the door, no way.
+    nav.set_goal(2.0, 1.0)
+    assert not nav.squeezing
+    status = nav.update()
+    assert status.state == FOLLOWING and nav.squeezing  # and it squeezes again, saying so
+    nav.cancel()
+    assert not nav.squeezing
+
+
+def test_no_squeeze_below_the_robot_radius_means_no_path():
+    geometry, data = door_map(0.3)
+    nav = navigator(robot_radius_m=0.2, squeeze_radius_m=0.2)
+    nav.set_map(geometry, data)
+    nav.set_pose(2.0, 1.0, 0.0)
+    nav.set_goal(8.0, 1.0)
+    assert nav.update().state == NO_PATH
+    # A door too narrow even for the squeeze radius stays closed.
+    geometry, data = door_map(0.1)
+    nav = navigator(robot_radius_m=0.2, squeeze_radius_m=0.15)
+    nav.set_map(geometry, data)
+    nav.set_pose(2.0, 1.0, 0.0)
+    nav.set_goal(8.0, 1.0)
+    status = nav.update()
+    assert status.state == NO_PATH and nav.squeezing, status.reason

@@ -36,6 +36,10 @@ class NavigatorInputError(ValueError):
 @dataclass
 class NavigatorConfig:
     robot_radius_m: float = 0.2          # cells within this distance of an obstacle are not entered
+    squeeze_radius_m: float = 0.15       # no path at robot_radius_m: plan once more with this
+                                         # inflation (a monocular map's walls come out thicker
+                                         # than they are and narrow its doors); not below
+                                         # robot_radius_m: never
     unknown_policy: str = "costly"       # unknown cells: free, costly or blocked
     unknown_cost: float = 2.0            # cost multiplier of unknown cells under "costly"
     occupied_threshold: int = 50         # OccupancyGrid values >= this are obstacles
@@ -48,7 +52,8 @@ class NavigatorConfig:
     max_cells: int = 25000000            # larger maps are refused
 
     def validate(self):
-        for name in ("robot_radius_m", "unknown_cost", "viewing_range_m", "goal_tolerance_m",
+        for name in ("robot_radius_m", "squeeze_radius_m", "unknown_cost", "viewing_range_m",
+                     "goal_tolerance_m",
                      "goal_search_radius_m", "replan_improvement_m", "max_deviation_m"):
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0:
@@ -123,6 +128,7 @@ class Navigator:
         self.lost = False
         self.awaiting_reanchor = False
         self.map_since_new_map = False
+        self.squeezing = False   # this goal is planned with squeeze_radius_m
         self.n_replans = 0
         self._reset_task()
 
@@ -208,12 +214,14 @@ class Navigator:
         self.goal = (float(x), float(y))
         self.goal_relative = None
         self.awaiting_reanchor = False
+        self._unsqueeze()
         self._reset_task()
 
     def cancel(self):
         self.goal = None
         self.goal_relative = None
         self.awaiting_reanchor = False
+        self._unsqueeze()
         self._reset_task()
 
     def on_slam_lost(self):
@@ -283,6 +291,8 @@ class Navigator:
         if self.target_cell is None:
             self.dstar = None
             self.path_cells = []
+            if self._squeeze():
+                return self.update()
             return self._status(self.target_kind, self.target_reason, with_path=False)
         if self.dstar is None or self.dstar.goal != self.target_cell:
             self.dstar = planning.DStarLite(self.grid, start, self.target_cell)
@@ -294,18 +304,21 @@ class Navigator:
             if not self.path_cells or (changed and self._should_switch()) or self._deviates():
                 self._adopt()
         self._advance(start)
+        if not self.path_cells and self._squeeze():
+            return self.update()
         if not self.path_cells:
             kind = NO_PATH if self.target_kind == FOLLOWING else self.target_kind
             return self._status(kind, f"no path to {self._fmt(self._target_world())}"
                                 + ("" if kind == NO_PATH else f" ({self.target_reason})"),
                                 with_path=False)
         if self.target_kind == FOLLOWING:
-            return self._status(FOLLOWING, f"following a path to the goal {self._fmt(self.goal)}")
+            return self._status(FOLLOWING, f"following a path to the goal {self._fmt(self.goal)}"
+                                + self._squeeze_note())
         if start == self.target_cell:
             return self._status(self.target_kind, self.target_reason + "; at that cell, waiting "
                                                                        "for the map to change",
                                 with_path=False)
-        return self._status(self.target_kind, self.target_reason)
+        return self._status(self.target_kind, self.target_reason + self._squeeze_note())
 
     def _status(self, state, reason, with_path=True):
         path = self._published_path() if with_path else []
@@ -321,11 +334,31 @@ class Navigator:
         return self.geometry.cell_to_world(*self.target_cell)
 
     def _rebuild_grid(self):
+        radius_m = self.cfg.squeeze_radius_m if self.squeezing else self.cfg.robot_radius_m
         self.grid = planning.Grid(self.applied, unknown_policy=self.cfg.unknown_policy,
                                   unknown_cost=self.cfg.unknown_cost,
-                                  inflation_radius=self.cfg.robot_radius_m / self.geometry.resolution,
+                                  inflation_radius=radius_m / self.geometry.resolution,
                                   occupied_threshold=self.cfg.occupied_threshold)
         self._reset_task()
+
+    def _squeeze(self):
+        """No way to the goal at robot_radius_m: inflate by squeeze_radius_m for the rest of this
+        goal. True when that is new (the caller plans again)."""
+        if self.squeezing or self.cfg.squeeze_radius_m >= self.cfg.robot_radius_m:
+            return False
+        self.squeezing = True
+        self._rebuild_grid()
+        return True
+
+    def _unsqueeze(self):
+        if self.squeezing:
+            self.squeezing = False
+            if self.geometry is not None:
+                self._rebuild_grid()
+
+    def _squeeze_note(self):
+        return (f" (squeezing through: {self.cfg.squeeze_radius_m} m clearance, no way at "
+                f"robot_radius_m {self.cfg.robot_radius_m} m)" if self.squeezing else "")
 
     def _apply_in_range(self):
         """Moves the pending changes within the viewing range into the planner. True if any."""

@@ -287,7 +287,7 @@ def test_a_loss_during_a_scan_is_left_to_the_scan_retries():
     assert m.conductor.phase == Phase.WALL_SCAN
 
 
-def test_a_scan_that_ended_while_lost_is_run_again():
+def test_a_scan_that_ended_while_lost_counts_as_cut_short_and_the_phase_rules_go_on():
     m = Mission()
     m.tick(start_requested=True)
     m.tick(scan_running=True)
@@ -296,9 +296,27 @@ def test_a_scan_that_ended_while_lost_is_run_again():
         (ActionKind.SCAN, "relocalise")]
     m.tick(scan_running=True)
     actions = m.tick(tracking_lost=False)
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
-                                                      (ActionKind.SCAN, "initial")]
-    assert m.conductor.phase == Phase.INITIAL_SCAN
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None)]
+    actions = m.tick(scan_running=False, map_ready=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
+    assert "the scan ended while SLAM tracking was lost: scan again (2/3)" in m.conductor.reason
+
+
+def test_a_robot_that_keeps_losing_tracking_in_its_scans_does_not_scan_forever():
+    m = Mission(ConductorConfig(max_scan_rounds=2, max_exit_attempts=2))
+    m.tick(start_requested=True)
+    for _ in range(50):
+        if m.conductor.phase.final:
+            break
+        m.tick(scan_running=True, map_ready=True)
+        m.tick(tracking_lost=True)
+        m.tick(scan_running=False)   # the scan ends while lost; relocalising starts
+        m.tick(tracking_lost=False)  # back, and again, and again
+        m.tick()                     # the phase's rules: scan again, or ask for the exit
+        if m.conductor.phase == Phase.FIND_EXIT:
+            m.tick(exit_answered=True, exit_xy=None)  # no exit: scan more
+    assert m.conductor.phase == Phase.GAVE_UP, m.conductor.history
+    assert "no exit in the map after 2 attempts" in m.conductor.reason
 
 
 def test_robot_inside_an_obstacle_recovers():

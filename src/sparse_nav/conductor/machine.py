@@ -187,6 +187,7 @@ class Conductor:
         self._lost_since_s = None
         self._recover_since_s = None
         self._scan_started = False
+        self._scan_cut = False  # the running phase scan ended while tracking was lost
         self._scan_kind = None
         self._scan_map_index = None  # the SLAM map when the running scan began
         self._last_tracked_xy: Optional[Tuple[float, float]] = None
@@ -196,9 +197,6 @@ class Conductor:
         self._scan_kind = name
         self._scan_started = False
         return Action(ActionKind.SCAN, name)
-
-    def _phase_scan(self):
-        return self._scan("initial" if self.phase == Phase.INITIAL_SCAN else "wall")
 
     def _set(self, time_s, state, phase, reason):
         if (state, phase, reason) != (self.state, self.phase, self.reason):
@@ -297,7 +295,9 @@ class Conductor:
             if self._resume_state == State.GOAL and self.goal_xy is not None:
                 actions.append(Action(ActionKind.GOAL, self.goal_xy))  # the map may be new
             elif self._resume_state == State.START and not obs_scan_running:
-                actions.append(self._phase_scan())
+                # The scan ended while tracking was lost. Starting it afresh each time let a robot
+                # that keeps losing tracking scan forever; the phase's bounded rules decide.
+                self._scan_started = self._scan_cut = True
             return actions
         if obs.map_ready and obs.robot_in_obstacle and not obs.scan_running:
             if self.state != State.RECOVER:
@@ -324,12 +324,15 @@ class Conductor:
         if not self._scan_started:
             return []  # the scan was asked for and has not begun yet
         self._scan_started = False
+        cut, self._scan_cut = self._scan_cut, False
         if self.phase == Phase.INITIAL_SCAN:
             # A loss that ended in a new SLAM map leaves a map (and a grid) of the part of the
-            # room scanned since: scan the whole room again in it while rounds are left.
-            map_changed = (obs.slam_map_index != self._scan_map_index
-                           and self._scan_rounds < cfg.max_scan_rounds)
-            if obs.map_ready and not obs.scan_failed and not map_changed:
+            # room scanned since: scan the whole room again in it while rounds are left; so does
+            # a scan cut short by a loss.
+            rounds_left = self._scan_rounds < cfg.max_scan_rounds
+            map_changed = obs.slam_map_index != self._scan_map_index and rounds_left
+            cut = cut and rounds_left
+            if obs.map_ready and not obs.scan_failed and not map_changed and not cut:
                 if cfg.wall_scan_enabled:
                     self._set(t, State.START, Phase.WALL_SCAN, "initial scan done: wall scan")
                     return [self._scan("wall")]
@@ -338,11 +341,13 @@ class Conductor:
                 return self._give_up(t, f"no navigable map after {self._scan_rounds} scans")
             self._scan_rounds += 1
             why = ("scan failed" if obs.scan_failed else
-                   "the SLAM map changed during the scan" if map_changed else "no navigable map yet")
+                   "the SLAM map changed during the scan" if map_changed else
+                   "the scan ended while SLAM tracking was lost" if cut else "no navigable map yet")
             self._set(t, State.START, Phase.INITIAL_SCAN, f"{why}: scan again "
                       f"({self._scan_rounds}/{cfg.max_scan_rounds})")
             return [self._scan("initial" if self._scan_rounds % 2 else "random")]
-        return self._ask_exit(t, "wall scan done: find the exit")
+        return self._ask_exit(t, "the scan ended while SLAM tracking was lost: find the exit" if cut
+                              else "wall scan done: find the exit")
 
     def _ask_exit(self, t, why):
         self._exit_attempts += 1

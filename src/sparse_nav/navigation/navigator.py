@@ -53,8 +53,8 @@ class NavigatorConfig:
 
     def validate(self):
         for name in ("robot_radius_m", "squeeze_radius_m", "unknown_cost", "viewing_range_m",
-                     "goal_tolerance_m",
-                     "goal_search_radius_m", "replan_improvement_m", "max_deviation_m"):
+                     "goal_tolerance_m", "goal_search_radius_m", "replan_improvement_m",
+                     "max_deviation_m"):
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f"{name} must be finite and >= 0, got {value}")

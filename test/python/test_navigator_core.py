@@ -333,20 +333,21 @@ def test_make_plan_uses_the_newest_map():
     assert nav.make_plan((math.nan, 0.0), (1.0, 1.0))[0] == []
 
 
-def door_map(door_m):
-    """A wall across the map at x = 5 m with one door of door_m centred at y = 3 m."""
+def through_a_door(door_m, robot_radius_m, squeeze_radius_m):
+    """A navigator at (2, 1) asked to (8, 1) beyond a wall across the map at x = 5 m whose one
+    door, door_m wide, is centred at y = 3 m."""
     geometry, data = free_map()
     wall(data, 5.0, 0.0, 3.0 - door_m / 2)
     wall(data, 5.0, 3.0 + door_m / 2, 6.0)
-    return geometry, data
-
-
-def test_a_door_narrower_than_the_robot_radius_allows_is_squeezed_through_for_that_goal_only():
-    geometry, data = door_map(0.3)
-    nav = navigator(robot_radius_m=0.2, squeeze_radius_m=0.15)
+    nav = navigator(robot_radius_m=robot_radius_m, squeeze_radius_m=squeeze_radius_m)
     nav.set_map(geometry, data)
     nav.set_pose(2.0, 1.0, 0.0)
     nav.set_goal(8.0, 1.0)
+    return nav
+
+
+def test_a_door_narrower_than_the_robot_radius_allows_is_squeezed_through_for_that_goal_only():
+    nav = through_a_door(0.3, robot_radius_m=0.2, squeeze_radius_m=0.15)
     status = nav.update()
     assert status.state == FOLLOWING and "squeezing through" in status.reason, status.reason
     assert path_is_clear(nav, status.path)
@@ -365,17 +366,8 @@ def test_a_door_narrower_than_the_robot_radius_allows_is_squeezed_through_for_th
 
 
 def test_no_squeeze_below_the_robot_radius_means_no_path():
-    geometry, data = door_map(0.3)
-    nav = navigator(robot_radius_m=0.2, squeeze_radius_m=0.2)
-    nav.set_map(geometry, data)
-    nav.set_pose(2.0, 1.0, 0.0)
-    nav.set_goal(8.0, 1.0)
-    assert nav.update().state == NO_PATH
+    assert through_a_door(0.3, robot_radius_m=0.2, squeeze_radius_m=0.2).update().state == NO_PATH
     # A door too narrow even for the squeeze radius stays closed.
-    geometry, data = door_map(0.1)
-    nav = navigator(robot_radius_m=0.2, squeeze_radius_m=0.15)
-    nav.set_map(geometry, data)
-    nav.set_pose(2.0, 1.0, 0.0)
-    nav.set_goal(8.0, 1.0)
+    nav = through_a_door(0.1, robot_radius_m=0.2, squeeze_radius_m=0.15)
     status = nav.update()
     assert status.state == NO_PATH and nav.squeezing, status.reason

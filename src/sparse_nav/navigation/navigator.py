@@ -333,12 +333,16 @@ class Navigator:
     def _target_world(self):
         return self.geometry.cell_to_world(*self.target_cell)
 
+    def _planning_grid(self, cells, radius_m):
+        """The planner's grid of OccupancyGrid values cells [y, x], inflated by radius_m."""
+        return planning.Grid(cells, unknown_policy=self.cfg.unknown_policy,
+                             unknown_cost=self.cfg.unknown_cost,
+                             inflation_radius=radius_m / self.geometry.resolution,
+                             occupied_threshold=self.cfg.occupied_threshold)
+
     def _rebuild_grid(self):
         radius_m = self.cfg.squeeze_radius_m if self.squeezing else self.cfg.robot_radius_m
-        self.grid = planning.Grid(self.applied, unknown_policy=self.cfg.unknown_policy,
-                                  unknown_cost=self.cfg.unknown_cost,
-                                  inflation_radius=radius_m / self.geometry.resolution,
-                                  occupied_threshold=self.cfg.occupied_threshold)
+        self.grid = self._planning_grid(self.applied, radius_m)
         self._reset_task()
 
     def _squeeze(self):
@@ -534,10 +538,7 @@ class Navigator:
         if not all(math.isfinite(v) for v in (*start, *goal, tolerance_m)):
             return [], "start, goal and tolerance must be finite"
         g = self.geometry
-        grid = planning.Grid(self.latest, unknown_policy=self.cfg.unknown_policy,
-                             unknown_cost=self.cfg.unknown_cost,
-                             inflation_radius=self.cfg.robot_radius_m / g.resolution,
-                             occupied_threshold=self.cfg.occupied_threshold)
+        grid = self._planning_grid(self.latest, self.cfg.robot_radius_m)
         s, t = self._cell_of(start), self._cell_of(goal)
         if not g.in_bounds(*s) or not grid.traversable(*s):
             return [], f"the start {self._fmt(start)} is outside the map or not traversable"

@@ -26,8 +26,8 @@ TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
 
 def _config_from_params():
     cfg = NavigatorConfig()
-    read_fields(cfg, ("robot_radius_m", "squeeze_radius_m", "unknown_policy", "unknown_cost", "occupied_threshold",
-                      "viewing_range_m", "goal_tolerance_m", "goal_search_radius_m",
+    read_fields(cfg, ("robot_radius_m", "squeeze_radius_m", "unknown_policy", "unknown_cost",
+                      "occupied_threshold", "viewing_range_m", "goal_tolerance_m", "goal_search_radius_m",
                       "replan_improvement_m", "max_deviation_m", "smooth_path", "max_cells"))
     cfg.validate()
     return cfg

@@ -294,49 +294,45 @@ void traverse(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca
     t_max[i] = (boundary - a[i]) / d[i];
     t_delta[i] = size / std::abs(d[i]);
   }
-  int remaining = (cb - ca).abs().sum();
-  while (remaining > 0)
+  // Branch-free step choice, kept in registers: which axis steps next is a coin toss along most
+  // rays, and a branch on it mispredicts about every other cell.
+  double t0 = t_max[0], t1 = t_max[1], t2 = t_max[2];
+  int x = c[0], y = c[1], z = c[2];
+  for (int remaining = (cb - ca).abs().sum(); remaining > 0; --remaining)
   {
-    visit(c);
-    int axis = 0;
-    if (t_max[1] < t_max[axis])
-      axis = 1;
-    if (t_max[2] < t_max[axis])
-      axis = 2;
-    if (step[axis] == 0)
-      break;
-    c[axis] += step[axis];
-    t_max[axis] += t_delta[axis];
-    --remaining;
+    visit(Cell(x, y, z));
+    const bool sx = t0 <= t1 && t0 <= t2;
+    const bool sy = !sx && t1 <= t2;
+    const bool sz = !sx && !sy;
+    x += sx ? step[0] : 0;
+    y += sy ? step[1] : 0;
+    z += sz ? step[2] : 0;
+    t0 += sx ? t_delta[0] : 0.0;
+    t1 += sy ? t_delta[1] : 0.0;
+    t2 += sz ? t_delta[2] : 0.0;
   }
+  c = Cell(x, y, z);
   if (include_end || (c != cb).any())
   {
     visit(c);
   }
 }
 
+/// Spreads the low 16 bits of v three bits apart (bit b to bit 3b).
+std::uint64_t spreadBits(std::uint32_t v)
+{
+  std::uint64_t x = v & 0xffffU;
+  x = (x | x << 16) & 0x0000ff0000ffULL;
+  x = (x | x << 8) & 0x00f00f00f00fULL;
+  x = (x | x << 4) & 0x0c30c30c30c3ULL;
+  x = (x | x << 2) & 0x249249249249ULL;
+  return x;
+}
+
 /// Interleaves the bits of x, y, z (16 bits each) into a Morton code (x lowest).
 std::uint64_t mortonCode(std::uint32_t x, std::uint32_t y, std::uint32_t z)
 {
-  std::uint64_t m = 0;
-  for (unsigned b = 0; b < 16; ++b)
-  {
-    m |= ((std::uint64_t{ x } >> b & 1U) << (3 * b)) | ((std::uint64_t{ y } >> b & 1U) << (3 * b + 1)) |
-         ((std::uint64_t{ z } >> b & 1U) << (3 * b + 2));
-  }
-  return m;
-}
-
-Cell mortonCell(std::uint64_t m)
-{
-  Cell c = Cell::Zero();
-  for (unsigned b = 0; b < 16; ++b)
-  {
-    c.x() |= static_cast<int>((m >> (3 * b)) & 1U) << b;
-    c.y() |= static_cast<int>((m >> (3 * b + 1)) & 1U) << b;
-    c.z() |= static_cast<int>((m >> (3 * b + 2)) & 1U) << b;
-  }
-  return c;
+  return spreadBits(x) | spreadBits(y) << 1 | spreadBits(z) << 2;
 }
 
 /// Applies a log-odds update to every leaf under node; unknown children become free leaves.
@@ -361,31 +357,49 @@ void updateSubtree(octomap::OcTree& tree, octomap::OcTreeNode* node, unsigned de
   node->updateOccupancyChildren();
 }
 
-/// Updates the node of `key` at `target_depth` (a coarse leaf, created or split as needed) and the
-/// inner nodes above it.
-void updateAtDepth(octomap::OcTree& tree, octomap::OcTreeNode* node, bool just_created, const octomap::OcTreeKey& key,
-                   unsigned depth, unsigned target_depth, float log_odds)
+/// A log-odds update of the node at `depth` whose fine key has Morton code `code`.
+struct NodeUpdate
 {
-  if (depth == target_depth)
+  std::uint64_t code;
+  unsigned depth;
+  float log_odds;
+  bool operator<(const NodeUpdate& o) const { return code < o.code; }
+};
+
+/// Applies updates sorted by code, covering disjoint subtrees of node, in one descent: each node
+/// on their paths is visited once (a pruned leaf is expanded, a missing child created) and its
+/// occupancy refreshed from its children after theirs, which is what OctoMap's lazy updateNode
+/// plus updateInnerOccupancy give, without walking from the root once per update.
+void applySorted(octomap::OcTree& tree, octomap::OcTreeNode* node, bool just_created, unsigned depth,
+                 const NodeUpdate* first, const NodeUpdate* last)
+{
+  if (last - first == 1 && first->depth == depth)
   {
-    updateSubtree(tree, node, depth, log_odds);
+    updateSubtree(tree, node, depth, first->log_odds);
     return;
   }
-  const unsigned pos = octomap::computeChildIdx(key, static_cast<int>(tree.getTreeDepth() - 1 - depth));
-  bool created = false;
-  if (!tree.nodeChildExists(node, pos))
+  const unsigned shift = 3 * (tree.getTreeDepth() - 1 - depth);
+  if (!tree.nodeHasChildren(node) && !just_created)
   {
-    if (!tree.nodeHasChildren(node) && !just_created)
+    tree.expandNode(node);  // a pruned leaf: its children inherit its value
+  }
+  while (first != last)
+  {
+    const unsigned pos = static_cast<unsigned>((first->code >> shift) & 7U);
+    const NodeUpdate* end = first;
+    while (end != last && ((end->code >> shift) & 7U) == pos)
     {
-      tree.expandNode(node);  // a pruned leaf: its children inherit its value
+      ++end;
     }
-    else
+    bool created = false;
+    if (!tree.nodeChildExists(node, pos))
     {
       tree.createNodeChild(node, pos);
       created = true;
     }
+    applySorted(tree, tree.getNodeChild(node, pos), created, depth + 1, first, end);
+    first = end;
   }
-  updateAtDepth(tree, tree.getNodeChild(node, pos), created, key, depth + 1, target_depth, log_odds);
   node->updateOccupancyChildren();
 }
 }  // namespace
@@ -473,7 +487,6 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
   }
   // One ray per (camera, coarse endpoint voxel) among the new endpoints, to the voxel's centre.
   std::unordered_set<std::uint64_t> cast;
-  const float hit = tree_->getProbHitLog();
   std::vector<octomap::OcTreeKey> hits;
   for (const auto& e : endpoints)
   {
@@ -510,25 +523,31 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
       }
     }
   }
-  // Hits first: they create the root a first insertion needs; free voxels never share a coarse
-  // voxel with an endpoint, so the order does not change the result.
-  // Many hits: update lazily and fix the inner nodes in one pass; few: along their own paths.
-  const bool lazy = hits.size() > 4096;
+  std::vector<NodeUpdate> updates;
+  updates.reserve(hits.size());
+  const float hit = tree_->getProbHitLog();
+  const unsigned tree_depth = tree_->getTreeDepth();
   for (const auto& k : hits)
   {
-    tree_->updateNode(k, hit, lazy);
+    updates.push_back(NodeUpdate{ mortonCode(k[0], k[1], k[2]), tree_depth, hit });
   }
-  if (lazy)
+  if (!tree_->getRoot() && !updates.empty())
   {
-    tree_->updateInnerOccupancy();
+    // The first insertion needs a root, which only OctoMap's own updateNode can create.
+    const octomap::OcTreeKey& k = hits.front();
+    tree_->updateNode(k, hit, false);
+    updates.front() = updates.back();
+    updates.pop_back();
   }
-  octomap::OcTreeNode* root = tree_->getRoot();
-  if (root)
+  std::sort(updates.begin(), updates.end());
+  if (tree_->getRoot())
   {
     const float miss = tree_->getProbMissLog();
-    const unsigned target_depth = tree_->getTreeDepth() - levels;
+    const unsigned target_depth = tree_depth - levels;
     // Free cells in Morton order; an aligned run of 8^k consecutive codes is a whole octree node
     // k levels above the coarse leaves, updated once (most of a room's volume is such blocks).
+    // Free cells never share a coarse voxel with an endpoint, so no two updates overlap.
+    const std::size_t n_hits = updates.size();
     std::vector<std::uint64_t> free_cells;
     marks.forEach([&](const Cell& c, std::uint8_t bits) {
       if (bits == CellMarks::kRay)
@@ -552,12 +571,13 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
         }
         ++up;
       }
-      const Cell c = mortonCell(code >> (3 * up)) * (1 << up);
-      const octomap::OcTreeKey key(static_cast<octomap::key_type>(c.x() << levels),
-                                   static_cast<octomap::key_type>(c.y() << levels),
-                                   static_cast<octomap::key_type>(c.z() << levels));
-      updateAtDepth(*tree_, root, false, key, 0, target_depth - up, miss);
+      updates.push_back(NodeUpdate{ code << (3 * levels), target_depth - up, miss });
       i += std::size_t{ 1 } << (3 * up);
+    }
+    std::inplace_merge(updates.begin(), updates.begin() + static_cast<std::ptrdiff_t>(n_hits), updates.end());
+    if (!updates.empty())
+    {
+      applySorted(*tree_, tree_->getRoot(), false, 0, updates.data(), updates.data() + updates.size());
     }
   }
   return stats;

@@ -50,6 +50,24 @@ TEST(OctreeMap, RayCastMarksFreeSpaceBetweenCameraAndWall)
   EXPECT_GT(map.occupiedCenters().size(), 100u);
 }
 
+TEST(OctreeMap, APointInKnownFreeSpaceSplitsTheFreeBlockAroundIt)
+{
+  // The first insertion leaves the space before the wall as large free leaves; a later point in
+  // it must turn only its own voxel occupied, with its neighbours inside the split block still free.
+  OctreeMap map;
+  map.insert(wall(), Eigen::Vector3d(0, 0, 0));
+  const std::size_t leaves_before = map.numLeafNodes();
+  ASSERT_EQ(map.query(Eigen::Vector3d(1.52, 0.02, 0.02)), VoxelState::kFree);
+  const auto stats = map.insert(PointList{ Eigen::Vector3f(1.52f, 0.02f, 0.02f) }, Eigen::Vector3d(0, 0, 0));
+  EXPECT_EQ(stats.n_new_voxels, 1u);
+  EXPECT_EQ(map.query(Eigen::Vector3d(1.52, 0.02, 0.02)), VoxelState::kOccupied);
+  EXPECT_EQ(map.query(Eigen::Vector3d(1.57, 0.02, 0.02)), VoxelState::kFree);
+  EXPECT_EQ(map.query(Eigen::Vector3d(1.52, 0.07, 0.07)), VoxelState::kFree);
+  EXPECT_EQ(map.query(Eigen::Vector3d(0.6, 0.03, -0.03)), VoxelState::kFree);
+  EXPECT_EQ(map.query(Eigen::Vector3d(3.0, 0.0, 0.0)), VoxelState::kOccupied);
+  EXPECT_GT(map.numLeafNodes(), leaves_before);
+}
+
 TEST(OctreeMap, FreeColumnsInAHeightBand)
 {
   OctreeMap map;

@@ -1,12 +1,10 @@
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <stdexcept>
 #include <vector>
 
-#include <CGAL/Alpha_shape_2.h>
-#include <CGAL/Alpha_shape_face_base_2.h>
-#include <CGAL/Alpha_shape_vertex_base_2.h>
 #include <CGAL/Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 
@@ -18,11 +16,8 @@ namespace
 {
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Point2 = Kernel::Point_2;
-using Vb = CGAL::Alpha_shape_vertex_base_2<Kernel>;
-using Fb = CGAL::Alpha_shape_face_base_2<Kernel>;
-using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
-using Delaunay = CGAL::Delaunay_triangulation_2<Kernel, Tds>;
-using AlphaShape = CGAL::Alpha_shape_2<Delaunay>;
+using Delaunay = CGAL::Delaunay_triangulation_2<Kernel>;
+using Face = Delaunay::Face_handle;
 
 Eigen::Vector2d toEigen(const Point2& p)
 {
@@ -90,35 +85,54 @@ AlphaShapeResult computeAlphaShape(const PointList2D& points, double alpha_m)
     collinearSegments(points, alpha_m, out);
     return out;
   }
-  AlphaShape shape(dt, Kernel::FT(alpha_m * alpha_m), AlphaShape::GENERAL);
-
+  // CGAL's Alpha_shape_2 classification (GENERAL mode) for one alpha, read straight off the
+  // triangulation: Alpha_shape_2 would first build and sort the alpha intervals of every face,
+  // edge and vertex (the whole spectrum), most of the cost when only one alpha is ever asked for.
+  // A face is interior when its squared circumradius is <= alpha^2; an edge with one interior
+  // face is regular; an edge with none is singular when alpha reaches its half length and no
+  // incident triangle's third vertex lies strictly inside its diametral circle.
+  const double alpha2 = alpha_m * alpha_m;
+  const auto squared_radius = Kernel().compute_squared_radius_2_object();
+  const auto side_of_bounded_circle = Kernel().side_of_bounded_circle_2_object();
+  auto faceAlpha2 = [&](const Face& f) {
+    return dt.is_infinite(f) ? std::numeric_limits<double>::infinity()
+                             : squared_radius(f->vertex(0)->point(), f->vertex(1)->point(), f->vertex(2)->point());
+  };
+  auto attached = [&](const Face& f, int i) {
+    return !dt.is_infinite(f) && side_of_bounded_circle(f->vertex(Delaunay::cw(i))->point(),
+                                                        f->vertex(Delaunay::ccw(i))->point(),
+                                                        f->vertex(i)->point()) == CGAL::ON_BOUNDED_SIDE;
+  };
   // Regular edges oriented with the interior on their left, keyed by their start vertex.
   std::multimap<std::pair<double, double>, std::pair<Point2, Point2>> outgoing;
-  for (auto it = shape.alpha_shape_edges_begin(); it != shape.alpha_shape_edges_end(); ++it)
+  for (auto it = dt.finite_edges_begin(); it != dt.finite_edges_end(); ++it)
   {
-    const AlphaShape::Edge& e = *it;
-    const auto type = shape.classify(e);
-    AlphaShape::Face_handle f = e.first;
-    int i = e.second;
-    if (type == AlphaShape::SINGULAR)
+    Face f = it->first;
+    int i = it->second;
+    const Face g = f->neighbor(i);
+    const int j = g->index(f);
+    const double alpha_f = faceAlpha2(f), alpha_g = faceAlpha2(g);
+    if (alpha2 < std::min(alpha_f, alpha_g))
     {
-      const Point2& a = f->vertex(AlphaShape::ccw(i))->point();
-      const Point2& b = f->vertex(AlphaShape::cw(i))->point();
-      out.segments.emplace_back(toEigen(a), toEigen(b));
+      const Point2& a = f->vertex(Delaunay::ccw(i))->point();
+      const Point2& b = f->vertex(Delaunay::cw(i))->point();
+      if (!attached(f, i) && !attached(g, j) && alpha2 >= squared_radius(a, b))
+      {
+        out.segments.emplace_back(toEigen(a), toEigen(b));
+      }
       continue;
     }
-    if (type != AlphaShape::REGULAR)
+    if (alpha2 >= std::max(alpha_f, alpha_g))
     {
-      continue;
+      continue;  // interior
     }
-    if (shape.classify(f) != AlphaShape::INTERIOR)
+    if (alpha_f > alpha2)
     {
-      AlphaShape::Face_handle g = f->neighbor(i);
-      i = g->index(f);
       f = g;
+      i = j;
     }
-    const Point2& a = f->vertex(AlphaShape::ccw(i))->point();
-    const Point2& b = f->vertex(AlphaShape::cw(i))->point();
+    const Point2& a = f->vertex(Delaunay::ccw(i))->point();
+    const Point2& b = f->vertex(Delaunay::cw(i))->point();
     outgoing.emplace(std::make_pair(a.x(), a.y()), std::make_pair(a, b));
   }
   // Chain into closed rings. At a vertex where rings touch any continuation is valid: the even-odd

@@ -24,7 +24,8 @@ std::int64_t floorDiv(std::int64_t a, std::int64_t b)
   return q;
 }
 
-/// Integer Bresenham over every cell from (x0, y0) to (x1, y1), both included.
+/// Integer Bresenham over every cell from (x0, y0) to (x1, y1), both included: max(|dx|, |dy|) + 1
+/// cells. The steps are chosen without branches (a branch on them mispredicts along most lines).
 template <typename Visit>
 void bresenham(int x0, int y0, int x1, int y1, Visit visit)
 {
@@ -33,24 +34,15 @@ void bresenham(int x0, int y0, int x1, int y1, Visit visit)
   const int sx = x0 < x1 ? 1 : -1;
   const int sy = y0 < y1 ? 1 : -1;
   int err = dx + dy;
-  for (;;)
+  for (int n = std::max(dx, -dy); n >= 0; --n)
   {
     visit(x0, y0);
-    if (x0 == x1 && y0 == y1)
-    {
-      return;
-    }
     const int e2 = 2 * err;
-    if (e2 >= dy)
-    {
-      err += dy;
-      x0 += sx;
-    }
-    if (e2 <= dx)
-    {
-      err += dx;
-      y0 += sy;
-    }
+    const bool step_x = e2 >= dy;
+    const bool step_y = e2 <= dx;
+    err += (step_x ? dy : 0) + (step_y ? dx : 0);
+    x0 += step_x ? sx : 0;
+    y0 += step_y ? sy : 0;
   }
 }
 

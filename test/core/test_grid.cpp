@@ -1,6 +1,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
+#include <set>
+#include <tuple>
+
+#include <CGAL/Alpha_shape_2.h>
+#include <CGAL/Alpha_shape_face_base_2.h>
+#include <CGAL/Alpha_shape_vertex_base_2.h>
+#include <CGAL/Delaunay_triangulation_2.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <stdexcept>
 
 #include "sparse_nav/core/grid_builder.h"
@@ -124,6 +133,100 @@ TEST(AlphaShape, RingsAndSegments)
   // Collinear points (a 1-D triangulation) still give segments.
   const auto line = sparse_nav::computeAlphaShape(PointList2D{ { 0, 0 }, { 0.2, 0 }, { 0.4, 0 }, { 2.0, 0 } }, 0.15);
   EXPECT_EQ(line.segments.size(), 2u);
+}
+
+namespace
+{
+using Edge2 = std::tuple<double, double, double, double>;
+
+/// Regular edges (interior on the left) and singular edges (sorted ends) of CGAL's own
+/// Alpha_shape_2 in GENERAL mode: the reference computeAlphaShape must reproduce.
+std::pair<std::set<Edge2>, std::set<Edge2>> cgalAlphaShape(const PointList2D& points, double alpha_m)
+{
+  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+  using Tds = CGAL::Triangulation_data_structure_2<CGAL::Alpha_shape_vertex_base_2<K>, CGAL::Alpha_shape_face_base_2<K>>;
+  using Shape = CGAL::Alpha_shape_2<CGAL::Delaunay_triangulation_2<K, Tds>>;
+  std::vector<K::Point_2> pts;
+  for (const auto& p : points)
+  {
+    pts.emplace_back(p.x(), p.y());
+  }
+  Shape shape(pts.begin(), pts.end(), K::FT(alpha_m * alpha_m), Shape::GENERAL);
+  std::set<Edge2> regular, singular;
+  for (auto it = shape.alpha_shape_edges_begin(); it != shape.alpha_shape_edges_end(); ++it)
+  {
+    Shape::Face_handle f = it->first;
+    int i = it->second;
+    if (shape.classify(*it) == Shape::SINGULAR)
+    {
+      auto a = f->vertex(Shape::ccw(i))->point(), b = f->vertex(Shape::cw(i))->point();
+      if (b < a)
+      {
+        std::swap(a, b);
+      }
+      singular.emplace(a.x(), a.y(), b.x(), b.y());
+      continue;
+    }
+    if (shape.classify(f) != Shape::INTERIOR)
+    {
+      const Shape::Face_handle g = f->neighbor(i);
+      i = g->index(f);
+      f = g;
+    }
+    const auto a = f->vertex(Shape::ccw(i))->point(), b = f->vertex(Shape::cw(i))->point();
+    regular.emplace(a.x(), a.y(), b.x(), b.y());
+  }
+  return { regular, singular };
+}
+}  // namespace
+
+TEST(AlphaShape, SameEdgesAsCgalAlphaShape2)
+{
+  // Points on a cell grid, as GridBuilder passes them: full of cocircular and equidistant points,
+  // so every tie of a face radius or half edge length with alpha is exercised.
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 40; ++trial)
+  {
+    const int side = 8 + trial;
+    std::uniform_int_distribution<int> coord(0, side);
+    PointList2D points;
+    std::set<std::pair<int, int>> used;
+    const int n = 10 + 6 * trial;
+    while (static_cast<int>(points.size()) < n)
+    {
+      const int x = coord(rng), y = coord(rng);
+      if (used.emplace(x, y).second)
+      {
+        points.emplace_back(x, y);
+      }
+    }
+    for (const double alpha : { 1.0, 1.5, std::sqrt(2.0), 2.0, 2.5, 4.0 })
+    {
+      const auto reference = cgalAlphaShape(points, alpha);
+      const auto ours = sparse_nav::computeAlphaShape(points, alpha);
+      std::set<Edge2> regular, singular;
+      for (const auto& ring : ours.rings)
+      {
+        for (std::size_t k = 0; k < ring.size(); ++k)
+        {
+          const auto& a = ring[k];
+          const auto& b = ring[(k + 1) % ring.size()];
+          regular.emplace(a.x(), a.y(), b.x(), b.y());
+        }
+      }
+      for (const auto& seg : ours.segments)
+      {
+        auto a = seg.first, b = seg.second;
+        if (b.x() < a.x() || (b.x() == a.x() && b.y() < a.y()))
+        {
+          std::swap(a, b);
+        }
+        singular.emplace(a.x(), a.y(), b.x(), b.y());
+      }
+      EXPECT_EQ(regular, reference.first) << "trial " << trial << ", alpha " << alpha;
+      EXPECT_EQ(singular, reference.second) << "trial " << trial << ", alpha " << alpha;
+    }
+  }
 }
 
 TEST(Rasterisation, KnownSquareCells)

@@ -38,8 +38,9 @@ struct AlphaShapeResult
 };
 
 /**
- * @brief CGAL Alpha_shape_2 (GENERAL mode) over 2D points [m]: regular edges chained into rings,
- * singular edges kept as segments. Points are used as given (GridBuilder passes one per cell).
+ * @brief The alpha shape of CGAL's Alpha_shape_2 (GENERAL mode) over 2D points [m], classified for
+ * this one alpha on a CGAL Delaunay triangulation: regular edges chained into rings, singular edges
+ * kept as segments. Points are used as given (GridBuilder passes one per cell).
  */
 AlphaShapeResult computeAlphaShape(const PointList2D& points, double alpha_m);
 

@@ -68,17 +68,6 @@ std::size_t OccupancyGrid::count(std::int8_t value) const
   return static_cast<std::size_t>(std::count(data.begin(), data.end(), value));
 }
 
-bool GridBuilder::Ray::operator<(const Ray& o) const
-{
-  return std::tie(x0, y0, x1, y1) < std::tie(o.x0, o.y0, o.x1, o.y1);
-}
-
-bool GridBuilder::Ray::operator==(const Ray& o) const
-{
-  return x0 == o.x0 && y0 == o.y0 && x1 == o.x1 && y1 == o.y1;
-}
-
-
 void GridBuilderConfig::validate() const
 {
   if (!(resolution_m > 0.0) || !std::isfinite(resolution_m))
@@ -115,6 +104,7 @@ void GridBuilder::reset()
   alpha_m_ = config_.alpha.alpha_m;
   tile_cells_.clear();
   rays_.clear();
+  ray_cover_.clear();
   last_shape_ = AlphaShapeResult();
 }
 
@@ -283,6 +273,14 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   if (full)
   {
     std::fill(write.begin(), write.end(), 1);
+    // Every ray lies inside the grid: its end cells are part of the extent the grid was sized to.
+    ray_cover_.assign(grid_.data.size(), 0);
+    for (const auto& r : new_rays)
+    {
+      bresenham(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
+                static_cast<int>(r.y1 - cell0_y_),
+                [&](int col, int row) { ++ray_cover_[static_cast<std::size_t>(row) * grid_.width + col]; });
+    }
   }
   else
   {
@@ -308,15 +306,23 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
         }
       }
     }
-    std::vector<Ray> changed;
-    std::set_symmetric_difference(rays_.begin(), rays_.end(), new_rays.begin(), new_rays.end(),
-                                  std::back_inserter(changed));
-    for (const auto& r : changed)
-    {
+    std::vector<Ray> removed, added;
+    std::set_difference(rays_.begin(), rays_.end(), new_rays.begin(), new_rays.end(), std::back_inserter(removed));
+    std::set_difference(new_rays.begin(), new_rays.end(), rays_.begin(), rays_.end(), std::back_inserter(added));
+    auto cover = [&](const Ray& r, std::int32_t delta) {
       bresenham(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
                 static_cast<int>(r.y1 - cell0_y_), [&](int col, int row) {
+                  ray_cover_[static_cast<std::size_t>(row) * grid_.width + col] += delta;
                   write[static_cast<std::size_t>((row / tile) * tiles_x_ + col / tile)] = 1;
                 });
+    };
+    for (const auto& r : removed)
+    {
+      cover(r, -1);
+    }
+    for (const auto& r : added)
+    {
+      cover(r, 1);
     }
   }
   tile_cells_.swap(tile_cells);
@@ -450,31 +456,11 @@ void GridBuilder::recomputeWindow(const Window& window, const std::vector<std::u
     drawEdge(toCv(s.first), toCv(s.second));
   }
 
-  // Free cells from the rays that cross the window.
-  cv::Mat free_cells = cv::Mat::zeros(window.rows, window.cols, CV_8UC1);
-  const std::int64_t wx0 = cell0_x_ + window.col0, wy0 = cell0_y_ + window.row0;
-  const std::int64_t wx1 = wx0 + window.cols - 1, wy1 = wy0 + window.rows - 1;
-  for (const auto& r : rays_)
-  {
-    if (std::max<std::int64_t>(r.x0, r.x1) < wx0 || std::min<std::int64_t>(r.x0, r.x1) > wx1 ||
-        std::max<std::int64_t>(r.y0, r.y1) < wy0 || std::min<std::int64_t>(r.y0, r.y1) > wy1)
-    {
-      continue;
-    }
-    bresenham(static_cast<int>(r.x0 - wx0), static_cast<int>(r.y0 - wy0), static_cast<int>(r.x1 - wx0),
-              static_cast<int>(r.y1 - wy0), [&](int x, int y) {
-                if (x >= 0 && y >= 0 && x < window.cols && y < window.rows)
-                {
-                  free_cells.at<std::uint8_t>(y, x) = 1;
-                }
-              });
-  }
-
   for (int row = 0; row < window.rows; ++row)
   {
     const int grow = window.row0 + row;
     const std::uint8_t* occ_row = occupied.ptr<std::uint8_t>(row);
-    const std::uint8_t* free_row = free_cells.ptr<std::uint8_t>(row);
+    const std::uint32_t* cover_row = ray_cover_.data() + static_cast<std::size_t>(grow) * grid_.width + window.col0;
     for (int col = 0; col < window.cols; ++col)
     {
       const int gcol = window.col0 + col;
@@ -487,7 +473,7 @@ void GridBuilder::recomputeWindow(const Window& window, const std::vector<std::u
       {
         v = OccupancyGrid::kOccupied;
       }
-      else if (free_row[col])
+      else if (cover_row[col] > 0)
       {
         v = OccupancyGrid::kFree;
       }

@@ -319,6 +319,29 @@ TEST(DirtyTiles, ChangingOneCornerRecomputesOnlyNearbyTilesAndMatchesAFullRebuil
   EXPECT_EQ(fresh2.grid().data, incremental.grid().data);
 }
 
+TEST(DirtyTiles, RemovingARayForgetsOnlyTheCellsNoOtherRaySaw)
+{
+  const PointList2D pts{ { 3.2, 0.5 }, { 0.5, 3.2 } };
+  const FreeRay long_ray{ Eigen::Vector2d(0.52, 0.52), Eigen::Vector2d(3.02, 0.52) };
+  const FreeRay short_ray{ Eigen::Vector2d(0.52, 0.52), Eigen::Vector2d(1.52, 0.52) };
+  const FreeRay side_ray{ Eigen::Vector2d(0.52, 0.52), Eigen::Vector2d(0.52, 3.02) };
+  GridBuilder builder;
+  ASSERT_TRUE(builder.update(pts, { long_ray, short_ray, side_ray }).full_rebuild);
+  EXPECT_EQ(valueAt(builder.grid(), 2.52, 0.52), OccupancyGrid::kFree);
+  EXPECT_EQ(valueAt(builder.grid(), 1.02, 0.52), OccupancyGrid::kFree);
+
+  const GridUpdate without = builder.update(pts, { short_ray, side_ray });
+  ASSERT_FALSE(without.full_rebuild);
+  EXPECT_EQ(valueAt(builder.grid(), 2.52, 0.52), OccupancyGrid::kUnknown);
+  EXPECT_EQ(valueAt(builder.grid(), 1.02, 0.52), OccupancyGrid::kFree);  // the short ray still sees it
+  GridBuilder fresh;
+  fresh.update(pts, { short_ray, side_ray });
+  EXPECT_EQ(fresh.grid().data, builder.grid().data);
+
+  ASSERT_FALSE(builder.update(pts, { long_ray, short_ray, side_ray }).full_rebuild);
+  EXPECT_EQ(valueAt(builder.grid(), 2.52, 0.52), OccupancyGrid::kFree);
+}
+
 TEST(DirtyTiles, GrowthForcesAFullRebuild)
 {
   GridBuilder builder;

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -87,7 +88,8 @@ struct GridUpdate
  *
  * Obstacles are reduced to one point per cell; CGAL alpha shapes over them are rasterised by
  * scanline fill (cv::fillPoly) and lines into occupied cells; free rays are rasterised (integer
- * Bresenham) into free cells; the rest is unknown. The grid is split in tiles; an update compares
+ * Bresenham) into a per-cell count of the rays crossing it, and cells with a count are free (an
+ * update adds and subtracts only the rays that changed); the rest is unknown. The grid is split in tiles; an update compares
  * the obstacle cells per tile and the set of rays with the previous update, and recomputes only
  * tiles within reach of a change (alpha shapes reach 2 * alpha: one tile of margin at the defaults),
  * giving the same cells as a full rebuild. The grid only grows: data outside it forces a rebuild.
@@ -111,8 +113,8 @@ public:
   struct Ray
   {
     std::int32_t x0, y0, x1, y1;  // absolute cells, canonical order
-    bool operator<(const Ray& o) const;
-    bool operator==(const Ray& o) const;
+    bool operator<(const Ray& o) const { return std::tie(x0, y0, x1, y1) < std::tie(o.x0, o.y0, o.x1, o.y1); }
+    bool operator==(const Ray& o) const { return x0 == o.x0 && y0 == o.y0 && x1 == o.x1 && y1 == o.y1; }
   };
 
 private:
@@ -131,6 +133,7 @@ private:
   double alpha_m_ = 0.0;
   std::vector<std::vector<std::uint32_t>> tile_cells_;  // sorted local cell ids per tile
   std::vector<Ray> rays_;                                // sorted, unique
+  std::vector<std::uint32_t> ray_cover_;                 // per grid cell: how many of rays_ cross it
   AlphaShapeResult last_shape_;
 };
 

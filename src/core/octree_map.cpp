@@ -219,7 +219,10 @@ public:
   std::uint8_t mark(const Cell& c, std::uint8_t bits)
   {
     // Rounding at a cell corner may step a traversal one cell past the box; such cells are skipped.
-    if (((c - lo_) < 0).any() || ((c - lo_) >= size_).any())
+    const Cell d = c - lo_;
+    if (static_cast<unsigned>(d.x()) >= static_cast<unsigned>(size_.x()) ||
+        static_cast<unsigned>(d.y()) >= static_cast<unsigned>(size_.y()) ||
+        static_cast<unsigned>(d.z()) >= static_cast<unsigned>(size_.z()))
     {
       return 0;
     }
@@ -454,6 +457,7 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
       hi = hi.max(origin_cells[c]);
     }
   }
+  inserted_.reserve(inserted_.size() + points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
   {
     const Eigen::Vector3d p = points[i].cast<double>();

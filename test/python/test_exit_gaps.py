@@ -130,3 +130,19 @@ def test_door_centre_follows_the_points_seen_through_the_opening():
     few = np.zeros(10, dtype=bool)
     few[:cfg.gap_centre_min_points - 1] = True
     assert np.allclose(gapslib.door_centre(profile, q, 80, 100, few, cfg), 0.5 * (a + b))
+
+
+def test_an_opening_seen_through_in_part_only_ranks_below_one_filled_by_its_backdrop():
+    # Door A (y = -2) shows its backdrop across its width, like an exit; opening B (y = 2) is
+    # narrower, nearer the likeliest door width, but shows something in only a quarter of its
+    # bearings, like an inner door onto a room whose far walls are out of reach.
+    doors = [Door(side=0, at_m=2.0, width_m=1.0), Door(side=2, at_m=3.0, width_m=0.8, beyond_m=3.0)]
+    xy, centres = room_cloud(RECT, doors, viewpoint=(0.0, 0.0), seed=5)
+    seen_through_b = xy[:, 1] > 2.3
+    xy = xy[~(seen_through_b & (xy[:, 0] > -0.5))]
+    result = find_exit(xy, method="gaps", up_axis=None, viewpoint=(0.0, 0.0))
+    assert near(result.exits[0], centres[0], 0.3)
+    assert any(near(e, centres[1], 0.4) for e in result.exits[1:])
+    ignored = ExitFinderConfig(gap_cover_weight=0.0)
+    without = find_exit(xy, method="gaps", up_axis=None, viewpoint=(0.0, 0.0), config=ignored)
+    assert near(without.exits[0], centres[1], 0.4)

@@ -101,6 +101,8 @@ class ExitFinderConfig:
     gap_door_width_sigma: float = 0.5  # spread of that preference in log width
     gap_beyond_points: float = 5.0     # points seen through an opening: evidence (n + 1) /
     #                                    (n + 1 + this), so about this many make it half sure
+    gap_cover_weight: float = 0.5      # an opening with nothing seen through part of its bearings
+    #                                    loses up to this share of its confidence (0: never)
     gap_occluder_share: float = 0.7    # a jamb whose bearings (from gap_occluder_offset bearings
     gap_occluder_offset: int = 1       # away from the opening on) have more than this share of
     #                                    their points far behind the surface is a box or a wall
@@ -111,7 +113,7 @@ class ExitFinderConfig:
     gap_max_exits: int = 5             # exits reported
     external_weight: float = 0.5       # confidence of a door gap given by the feature extractor
     external_match: float = 0.15       # r.u.: own and external gaps closer than this are one door
-    auto_min_confidence: float = 0.1   # auto: a gaps answer below this falls back to the seed
+    auto_min_confidence: float = 0.05  # auto: a gaps answer below this falls back to the seed
 
     def validate(self):
         """Raise ValueError naming the first invalid parameter."""
@@ -173,7 +175,7 @@ class ExitFinderConfig:
         for name in ("distinct_angle_deg", "min_corner_angle_deg"):
             if not 0 <= getattr(self, name) < 90:
                 raise ValueError(f"{name} must be in [0, 90), got {getattr(self, name)}")
-        for name in ("gap_surface_share", "gap_notch_share", "external_weight",
+        for name in ("gap_surface_share", "gap_notch_share", "external_weight", "gap_cover_weight",
                      "gap_occluder_share", "auto_min_confidence"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")

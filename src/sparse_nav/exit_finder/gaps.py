@@ -305,6 +305,16 @@ def through_count(profile, left, right, cfg):
     return int(np.count_nonzero(through_mask(profile, left, right, cfg)))
 
 
+def through_coverage(profile, left, right, through, cfg):
+    """Step 3: the share of the bearings strictly between the jambs through which at least
+    ``gap_min_surface_points`` points are seen (0 when there are none)."""
+    idx = np.arange(left + 1, right) % len(profile.angles)
+    if not len(idx):
+        return 0.0
+    counts = np.bincount(profile.bearing[through], minlength=len(profile.angles))
+    return float(np.mean(counts[idx] >= max(cfg.gap_min_surface_points, 1.0)))
+
+
 def door_centre(profile, q, left, right, through, cfg):
     """Where on the bridge between the jambs the door is: along the mean bearing of the points
     seen through it, which only the door's own aperture lets through (a jamb found a little off
@@ -385,8 +395,10 @@ def find_gaps(q, cfg, rng=None, external=None, viewpoint=None):
         through = through_mask(profile, left, right, cfg)
         a, b = profile.point(left), profile.point(right)
         width = float(np.hypot(*(b - a)))
+        coverage = through_coverage(profile, left, right, through, cfg)
         cands.append([door_centre(profile, q, left, right, through, cfg),
-                      door_confidence(int(np.count_nonzero(through)), width, cfg), left, right])
+                      door_confidence(int(np.count_nonzero(through)), width, cfg, coverage),
+                      left, right])
     cands = _suppress_overlaps(cands, len(profile.angles))
     cands = _fuse_external(cands, external, profile, cfg)
     cands.sort(key=lambda c: -c[1])
@@ -401,18 +413,21 @@ def find_gaps(q, cfg, rng=None, external=None, viewpoint=None):
     return GapResult(exits=exits, outline=outline, details=details)
 
 
-def door_confidence(seen, width, cfg):
+def door_confidence(seen, width, cfg, coverage=1.0):
     """Step 3's confidence in (0, 1): the evidence of the points seen through the opening,
     ``(seen + 1) / (seen + 1 + gap_beyond_points)`` (an opening with nothing seen through it is
     still a gap in the wall, but a weak one), times a width prior
     ``exp(-ln(width / gap_door_width)^2 / (2 gap_door_width_sigma^2))``: doors are about a
     metre wide and rooms a few metres, so a door is about ``gap_door_width`` cloud radii wide;
     much narrower or wider openings are more likely texture holes, blank walls or the open
-    side of an L."""
+    side of an L. Times ``1 - gap_cover_weight * (1 - coverage)``, the share of the door's
+    bearings with a surface seen through them (:func:`through_coverage`): an exit shows the
+    nearest outside surface across its whole width, while an opening into more building
+    shows a few objects in part of it, its far walls being out of the camera's reach."""
     evidence = (seen + 1.0) / (seen + 1.0 + cfg.gap_beyond_points)
     prior = np.exp(-0.5 * (np.log(max(width, 1e-9) / cfg.gap_door_width) /
                            cfg.gap_door_width_sigma) ** 2)
-    return float(evidence * prior)
+    return float(evidence * prior * (1.0 - cfg.gap_cover_weight * (1.0 - coverage)))
 
 
 def _suppress_overlaps(cands, n_bins):

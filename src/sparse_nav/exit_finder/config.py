@@ -101,8 +101,10 @@ class ExitFinderConfig:
     gap_door_width_sigma: float = 0.5  # spread of that preference in log width
     gap_beyond_points: float = 5.0     # points seen through an opening: evidence (n + 1) /
     #                                    (n + 1 + this), so about this many make it half sure
-    gap_cover_weight: float = 0.5      # an opening with nothing seen through part of its bearings
-    #                                    loses up to this share of its confidence (0: never)
+    gap_cover_weight: float = 0.5      # confidence x (1 - this x the share of the opening's
+    #                                    bearings with fewer than gap_min_surface_points seen
+    #                                    through them): an exit shows its backdrop across its
+    #                                    width, an inner door a few far objects (0: off)
     gap_occluder_share: float = 0.7    # a jamb whose bearings (from gap_occluder_offset bearings
     gap_occluder_offset: int = 1       # away from the opening on) have more than this share of
     #                                    their points far behind the surface is a box or a wall
@@ -114,6 +116,7 @@ class ExitFinderConfig:
     external_weight: float = 0.5       # confidence of a door gap given by the feature extractor
     external_match: float = 0.15       # r.u.: own and external gaps closer than this are one door
     auto_min_confidence: float = 0.05  # auto: a gaps answer below this falls back to the seed
+    #                                    (gap_cover_weight can halve a confidence: 0.1 before it)
 
     def validate(self):
         """Raise ValueError naming the first invalid parameter."""

@@ -25,7 +25,9 @@ as the place around which the fewest points hide behind the nearest surface
    exit) and a door next to a corner are notches like any other.
 3. Confidence (:func:`door_confidence`): the points seen *through* the bridge (beyond it by more
    than ``gap_beyond_margin`` of the range) make it a door rather than a blank stretch of wall,
-   and a door is about as wide as a door. Overlapping notches keep the best.
+   a door is about as wide as a door, and an exit shows what stands outside across its whole
+   width (:func:`through_coverage`), where an inner door often shows a few objects of the far
+   room in part of it. Overlapping notches keep the best.
 4. Door gaps from the feature extractor, when given, raise the confidence of the candidate they
    match (within ``external_match``) by ``external_weight`` (probabilistic or), or become
    candidates of their own, scored by the points seen through them.

@@ -12,7 +12,7 @@ Methods (``METHODS``):
   seen through them, ranked with a confidence, fused with the feature extractor's door gaps when
   given; see :mod:`.gaps`. When the given viewpoint shows no exit it looks once more from the
   viewpoint the cloud suggests (a camera that moved while mapping saw the door from elsewhere).
-  The default: it wins the simulator benchmark (bench/bench_exit_finder.py: 80.2 % of the
+  The default: it wins the simulator benchmark (bench/bench_exit_finder.py: 81.7 % of the
   rooms with a door visible from the start), and it answers "no exit" rather than fall back to
   a guess.
 * ``auto``: per cloud, ``gaps`` when it finds an opening with confidence >=

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <tuple>
 
+#include <boost/sort/spreadsort/integer_sort.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -43,6 +44,45 @@ void bresenham(int x0, int y0, int x1, int y1, Visit visit)
     err += (step_x ? dy : 0) + (step_y ? dx : 0);
     x0 += step_x ? sx : 0;
     y0 += step_y ? sy : 0;
+  }
+}
+
+/// Sorts rays (x0, y0, x1, y1 lexicographic) and drops repeats. Rays within 65536 cells of each
+/// other, as in any real map, are packed into one 64-bit key in that same order and radix-sorted
+/// (boost spreadsort): a hundred thousand rays per cloud made std::sort the grid's largest cost.
+void sortUnique(std::vector<GridBuilder::Ray>& rays)
+{
+  if (rays.empty())
+  {
+    return;
+  }
+  std::int64_t lo = std::numeric_limits<std::int64_t>::max(), hi = std::numeric_limits<std::int64_t>::lowest();
+  for (const auto& r : rays)
+  {
+    lo = std::min<std::int64_t>({ lo, r.x0, r.y0, r.x1, r.y1 });
+    hi = std::max<std::int64_t>({ hi, r.x0, r.y0, r.x1, r.y1 });
+  }
+  if (hi - lo >= 65536)
+  {
+    std::sort(rays.begin(), rays.end());
+    rays.erase(std::unique(rays.begin(), rays.end()), rays.end());
+    return;
+  }
+  std::vector<std::uint64_t> keys;
+  keys.reserve(rays.size());
+  for (const auto& r : rays)
+  {
+    keys.push_back(static_cast<std::uint64_t>(r.x0 - lo) << 48 | static_cast<std::uint64_t>(r.y0 - lo) << 32 |
+                   static_cast<std::uint64_t>(r.x1 - lo) << 16 | static_cast<std::uint64_t>(r.y1 - lo));
+  }
+  boost::sort::spreadsort::integer_sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  rays.resize(keys.size());
+  for (std::size_t i = 0; i < keys.size(); ++i)
+  {
+    const std::uint64_t k = keys[i];
+    rays[i] = GridBuilder::Ray{ static_cast<std::int32_t>((k >> 48) + lo), static_cast<std::int32_t>(((k >> 32) & 0xffff) + lo),
+                                static_cast<std::int32_t>(((k >> 16) & 0xffff) + lo), static_cast<std::int32_t>((k & 0xffff) + lo) };
   }
 }
 
@@ -150,8 +190,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     }
     new_rays.push_back(Ray{ ax, ay, bx, by });
   }
-  std::sort(new_rays.begin(), new_rays.end());
-  new_rays.erase(std::unique(new_rays.begin(), new_rays.end()), new_rays.end());
+  sortUnique(new_rays);
   result.n_obstacle_cells = cells.size();
   result.n_rays = new_rays.size();
 

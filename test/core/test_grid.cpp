@@ -352,6 +352,28 @@ TEST(DirtyTiles, GrowthForcesAFullRebuild)
   EXPECT_GT(builder.grid().width, w);
 }
 
+TEST(GridBuilder, RepeatedRaysCountOnceNearByOrKilometresApart)
+{
+  const FreeRay near_a{ Eigen::Vector2d(0.02, 0.02), Eigen::Vector2d(1.02, 0.02) };
+  const FreeRay near_b{ Eigen::Vector2d(0.02, 0.02), Eigen::Vector2d(0.02, 1.02) };
+  GridBuilder nearby;
+  const GridUpdate u = nearby.update({}, { near_a, near_b, near_a, near_b, near_a });
+  ASSERT_TRUE(u.ok) << u.status;
+  EXPECT_EQ(u.n_rays, 2u);
+  EXPECT_EQ(valueAt(nearby.grid(), 0.52, 0.02), OccupancyGrid::kFree);
+  EXPECT_EQ(valueAt(nearby.grid(), 0.02, 0.52), OccupancyGrid::kFree);
+
+  // 4 km apart: more than 65536 cells, the rays cannot share one packed sort key.
+  const FreeRay far{ Eigen::Vector2d(4000.02, 0.02), Eigen::Vector2d(4001.02, 0.02) };
+  GridBuilder spread;
+  const GridUpdate v = spread.update({}, { far, near_a, far, near_a });
+  ASSERT_TRUE(v.ok) << v.status;
+  EXPECT_EQ(v.n_rays, 2u);
+  EXPECT_EQ(valueAt(spread.grid(), 0.52, 0.02), OccupancyGrid::kFree);
+  EXPECT_EQ(valueAt(spread.grid(), 4000.52, 0.02), OccupancyGrid::kFree);
+  EXPECT_EQ(valueAt(spread.grid(), 2000.0, 0.02), OccupancyGrid::kUnknown);
+}
+
 TEST(GridBuilder, EmptyInputGivesAnEmptyGridWithAStatus)
 {
   GridBuilder builder;

@@ -348,20 +348,21 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     std::vector<Ray> removed, added;
     std::set_difference(rays_.begin(), rays_.end(), new_rays.begin(), new_rays.end(), std::back_inserter(removed));
     std::set_difference(new_rays.begin(), new_rays.end(), rays_.begin(), rays_.end(), std::back_inserter(added));
-    auto cover = [&](const Ray& r, std::int32_t delta) {
+    auto cover = [&](const Ray& r, bool add) {
       bresenham(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
                 static_cast<int>(r.y1 - cell0_y_), [&](int col, int row) {
-                  ray_cover_[static_cast<std::size_t>(row) * grid_.width + col] += delta;
+                  std::uint32_t& count = ray_cover_[static_cast<std::size_t>(row) * grid_.width + col];
+                  count = add ? count + 1 : count - 1;
                   write[static_cast<std::size_t>((row / tile) * tiles_x_ + col / tile)] = 1;
                 });
     };
     for (const auto& r : removed)
     {
-      cover(r, -1);
+      cover(r, false);
     }
     for (const auto& r : added)
     {
-      cover(r, 1);
+      cover(r, true);
     }
   }
   tile_cells_.swap(tile_cells);

@@ -61,7 +61,7 @@ struct GridBuilderConfig
   double resolution_m = 0.05;  ///< cell edge [m]
   int tile_size_cells = 32;    ///< dirty-region tile edge [cells]
   double padding_m = 0.5;      ///< free margin around the data when the grid is sized [m]
-  int max_cells = 100000000;   ///< refuse grids with more cells than this (huge extents)
+  int max_cells = 100000000;   ///< refuse grids with more cells than this (huge extents; 5 bytes per cell)
   AlphaShapeConfig alpha;
 
   /// @brief Throws std::invalid_argument when a value is out of range.
@@ -88,11 +88,12 @@ struct GridUpdate
  *
  * Obstacles are reduced to one point per cell; CGAL alpha shapes over them are rasterised by
  * scanline fill (cv::fillPoly) and lines into occupied cells; free rays are rasterised (integer
- * Bresenham) into a per-cell count of the rays crossing it, and cells with a count are free (an
- * update adds and subtracts only the rays that changed); the rest is unknown. The grid is split in tiles; an update compares
- * the obstacle cells per tile and the set of rays with the previous update, and recomputes only
- * tiles within reach of a change (alpha shapes reach 2 * alpha: one tile of margin at the defaults),
- * giving the same cells as a full rebuild. The grid only grows: data outside it forces a rebuild.
+ * Bresenham) into a per-cell count of the rays crossing it, and cells with a count are free; the
+ * rest is unknown. The grid is split in tiles; an update compares the obstacle cells per tile and
+ * the set of rays with the previous update, subtracts the removed rays from the counts and adds the
+ * new ones, and recomputes only tiles within reach of a change (alpha shapes reach 2 * alpha: one
+ * tile of margin at the defaults), giving the same cells as a full rebuild. The grid only grows:
+ * data outside it forces a rebuild.
  */
 class GridBuilder
 {

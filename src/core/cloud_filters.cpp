@@ -1,5 +1,6 @@
 #include "sparse_nav/core/cloud_filters.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -156,25 +157,16 @@ PointList DensityFilter::applyRadiusOutlier(const PointList& points) const
   // PCL's RadiusOutlierRemoval rule (keep points with >= min_neighbors others within radius_m),
   // counted in a uniform hash that stops at min_neighbors: a k-d tree radius search returns every
   // neighbour, which in dense clouds costs ten times more.
-  const float r2 = static_cast<float>(config_.radius_m * config_.radius_m);
-  const std::size_t k = static_cast<std::size_t>(config_.min_neighbors);
   const SpatialHash3 hash(config_.radius_m, points);
+  const std::vector<char> keep = hash.hasNeighbours(points, static_cast<float>(config_.radius_m),
+                                                    static_cast<std::size_t>(config_.min_neighbors));
   PointList out;
   out.reserve(points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
   {
-    const Eigen::Vector3f& p = points[i];
-    std::size_t count = 0;
-    hash.forEachNear(p, [&](std::uint32_t j) {
-      if (j != i && (points[j] - p).squaredNorm() <= r2)
-      {
-        ++count;
-      }
-      return count < k;
-    });
-    if (count >= k)
+    if (keep[i])
     {
-      out.push_back(p);
+      out.push_back(points[i]);
     }
   }
   return out;
@@ -183,32 +175,14 @@ PointList DensityFilter::applyRadiusOutlier(const PointList& points) const
 PointList DensityFilter::applyIpcl(const PointList& points, DensityFilterStats* stats) const
 {
   const double r = config_.radius_m;
-  const float r2 = static_cast<float>(r * r);
-  const std::size_t k = static_cast<std::size_t>(config_.min_neighbors);
   PointList alive = points;
   for (int round = 0; round < config_.ipcl_rounds && !alive.empty(); ++round)
   {
     ++stats->rounds_run;
-    SpatialHash3 hash(r, alive);
-    std::vector<char> keep(alive.size(), 0);
-    std::size_t n_keep = 0;
-    for (std::size_t i = 0; i < alive.size(); ++i)
-    {
-      const Eigen::Vector3f& p = alive[i];
-      std::size_t count = 0;
-      hash.forEachNear(p, [&](std::uint32_t j) {
-        if (j != i && (alive[j] - p).squaredNorm() <= r2)
-        {
-          ++count;
-        }
-        return count < k;
-      });
-      if (count >= k)
-      {
-        keep[i] = 1;
-        ++n_keep;
-      }
-    }
+    const SpatialHash3 hash(r, alive);
+    const std::vector<char> keep =
+        hash.hasNeighbours(alive, static_cast<float>(r), static_cast<std::size_t>(config_.min_neighbors));
+    const std::size_t n_keep = static_cast<std::size_t>(std::count(keep.begin(), keep.end(), 1));
     if (n_keep == alive.size())
     {
       break;

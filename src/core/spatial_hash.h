@@ -61,6 +61,11 @@ public:
     {
       items_[fill[cell_of[i]]++] = static_cast<std::uint32_t>(i);
     }
+    keys_.resize(ids.size());
+    for (const auto& kv : ids)
+    {
+      keys_[kv.second] = kv.first;
+    }
     ids_.swap(ids);
   }
 
@@ -102,11 +107,56 @@ public:
     }
   }
 
+  /**
+   * @brief Per point of the points the hash was built on, 1 when at least k others lie within
+   * radius (<= the cell edge) of it. Counts stop at k. The points are visited cell by cell, so the
+   * 27 cells around are looked up once per cell rather than once per point.
+   */
+  std::vector<char> hasNeighbours(const PointList& points, float radius, std::size_t k) const
+  {
+    std::vector<char> result(points.size(), 0);
+    const float r2 = radius * radius;
+    static const int kOrder[3] = { 0, -1, 1 };
+    std::vector<std::uint32_t> around;  // cell ids, p's own first
+    for (std::uint32_t cell = 0; cell < keys_.size(); ++cell)
+    {
+      around.clear();
+      const CellKey& c = keys_[cell];
+      for (int iz : kOrder)
+        for (int iy : kOrder)
+          for (int ix : kOrder)
+          {
+            auto it = ids_.find(CellKey{ c.x + ix, c.y + iy, c.z + iz });
+            if (it != ids_.end())
+            {
+              around.push_back(it->second);
+            }
+          }
+      for (std::uint32_t a = start_[cell]; a < start_[cell + 1]; ++a)
+      {
+        const std::uint32_t i = items_[a];
+        const Eigen::Vector3f& p = points[i];
+        std::size_t count = 0;
+        for (std::size_t n = 0; n < around.size() && count < k; ++n)
+        {
+          for (std::uint32_t b = start_[around[n]]; b < start_[around[n] + 1] && count < k; ++b)
+          {
+            const std::uint32_t j = items_[b];
+            count += j != i && (points[j] - p).squaredNorm() <= r2;
+          }
+        }
+        result[i] = count >= k;
+      }
+    }
+    return result;
+  }
+
 private:
   double inv_;
   std::unordered_map<CellKey, std::uint32_t, CellKeyHash> ids_;
   std::vector<std::uint32_t> start_;
   std::vector<std::uint32_t> items_;
+  std::vector<CellKey> keys_;  // per cell id
 };
 
 }  // namespace sparse_nav

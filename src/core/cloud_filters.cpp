@@ -42,6 +42,21 @@ void appendFromPcl(const pcl::PointCloud<pcl::PointXYZ>& cloud, PointList& out)
     out.emplace_back(p.x, p.y, p.z);
   }
 }
+
+/// The points whose keep flag is set, in their order.
+PointList keptPoints(const PointList& points, const std::vector<char>& keep)
+{
+  PointList out;
+  out.reserve(static_cast<std::size_t>(std::count(keep.begin(), keep.end(), 1)));
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    if (keep[i])
+    {
+      out.push_back(points[i]);
+    }
+  }
+  return out;
+}
 }  // namespace
 
 
@@ -160,16 +175,7 @@ PointList DensityFilter::applyRadiusOutlier(const PointList& points) const
   const SpatialHash3 hash(config_.radius_m, points);
   const std::vector<char> keep = hash.hasNeighbours(points, static_cast<float>(config_.radius_m),
                                                     static_cast<std::size_t>(config_.min_neighbors));
-  PointList out;
-  out.reserve(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i)
-  {
-    if (keep[i])
-    {
-      out.push_back(points[i]);
-    }
-  }
-  return out;
+  return keptPoints(points, keep);
 }
 
 PointList DensityFilter::applyIpcl(const PointList& points, DensityFilterStats* stats) const
@@ -187,16 +193,7 @@ PointList DensityFilter::applyIpcl(const PointList& points, DensityFilterStats* 
     {
       break;
     }
-    PointList next;
-    next.reserve(n_keep);
-    for (std::size_t i = 0; i < alive.size(); ++i)
-    {
-      if (keep[i])
-      {
-        next.push_back(alive[i]);
-      }
-    }
-    alive.swap(next);
+    alive = keptPoints(alive, keep);
   }
   return alive;
 }

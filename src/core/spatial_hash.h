@@ -81,30 +81,16 @@ public:
   template <typename Visit>
   void forEachNear(const Eigen::Vector3f& p, Visit visit) const
   {
-    const CellKey c = key(p);
-    static const int kOrder[3] = { 0, -1, 1 };
-    for (int iz : kOrder)
-    {
-      for (int iy : kOrder)
+    cellsAround(key(p), [&](std::uint32_t cell) {
+      for (std::uint32_t k = start_[cell]; k < start_[cell + 1]; ++k)
       {
-        for (int ix : kOrder)
+        if (!visit(items_[k]))
         {
-          const std::int64_t dx = ix, dy = iy, dz = iz;
-          auto it = ids_.find(CellKey{ c.x + dx, c.y + dy, c.z + dz });
-          if (it == ids_.end())
-          {
-            continue;
-          }
-          for (std::uint32_t k = start_[it->second]; k < start_[it->second + 1]; ++k)
-          {
-            if (!visit(items_[k]))
-            {
-              return;
-            }
-          }
+          return false;
         }
       }
-    }
+      return true;
+    });
   }
 
   /**
@@ -116,22 +102,14 @@ public:
   {
     std::vector<char> result(points.size(), 0);
     const float r2 = radius * radius;
-    static const int kOrder[3] = { 0, -1, 1 };
-    std::vector<std::uint32_t> around;  // cell ids, p's own first
+    std::vector<std::uint32_t> around;  // cell ids, the points' own first
     for (std::uint32_t cell = 0; cell < keys_.size(); ++cell)
     {
       around.clear();
-      const CellKey& c = keys_[cell];
-      for (int iz : kOrder)
-        for (int iy : kOrder)
-          for (int ix : kOrder)
-          {
-            auto it = ids_.find(CellKey{ c.x + ix, c.y + iy, c.z + iz });
-            if (it != ids_.end())
-            {
-              around.push_back(it->second);
-            }
-          }
+      cellsAround(keys_[cell], [&](std::uint32_t id) {
+        around.push_back(id);
+        return true;
+      });
       for (std::uint32_t a = start_[cell]; a < start_[cell + 1]; ++a)
       {
         const std::uint32_t i = items_[a];
@@ -152,6 +130,27 @@ public:
   }
 
 private:
+  /// Calls visit(cell id) for the occupied cells among the 27 around c, c first, until it returns false.
+  template <typename Visit>
+  void cellsAround(const CellKey& c, Visit visit) const
+  {
+    static const int kOrder[3] = { 0, -1, 1 };
+    for (int iz : kOrder)
+    {
+      for (int iy : kOrder)
+      {
+        for (int ix : kOrder)
+        {
+          auto it = ids_.find(CellKey{ c.x + ix, c.y + iy, c.z + iz });
+          if (it != ids_.end() && !visit(it->second))
+          {
+            return;
+          }
+        }
+      }
+    }
+  }
+
   double inv_;
   std::unordered_map<CellKey, std::uint32_t, CellKeyHash> ids_;
   std::vector<std::uint32_t> start_;

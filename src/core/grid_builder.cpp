@@ -309,16 +309,19 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   const double alpha_cells = alpha_m_ / res;
   const int margin = static_cast<int>(std::ceil((2.0 * alpha_cells + 2.0) / tile));
   write.assign(static_cast<std::size_t>(n_tiles), 0);
+  // Calls visit(col, row) for the grid cells of a ray, which always lies inside the grid: its end
+  // cells are part of the extent the grid was sized to.
+  auto walkRay = [&](const Ray& r, auto visit) {
+    bresenham(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
+              static_cast<int>(r.y1 - cell0_y_), visit);
+  };
   if (full)
   {
     std::fill(write.begin(), write.end(), 1);
-    // Every ray lies inside the grid: its end cells are part of the extent the grid was sized to.
     ray_cover_.assign(grid_.data.size(), 0);
     for (const auto& r : new_rays)
     {
-      bresenham(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
-                static_cast<int>(r.y1 - cell0_y_),
-                [&](int col, int row) { ++ray_cover_[static_cast<std::size_t>(row) * grid_.width + col]; });
+      walkRay(r, [&](int col, int row) { ++ray_cover_[static_cast<std::size_t>(row) * grid_.width + col]; });
     }
   }
   else
@@ -349,12 +352,11 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     std::set_difference(rays_.begin(), rays_.end(), new_rays.begin(), new_rays.end(), std::back_inserter(removed));
     std::set_difference(new_rays.begin(), new_rays.end(), rays_.begin(), rays_.end(), std::back_inserter(added));
     auto cover = [&](const Ray& r, bool add) {
-      bresenham(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
-                static_cast<int>(r.y1 - cell0_y_), [&](int col, int row) {
-                  std::uint32_t& count = ray_cover_[static_cast<std::size_t>(row) * grid_.width + col];
-                  count = add ? count + 1 : count - 1;
-                  write[static_cast<std::size_t>((row / tile) * tiles_x_ + col / tile)] = 1;
-                });
+      walkRay(r, [&](int col, int row) {
+        std::uint32_t& count = ray_cover_[static_cast<std::size_t>(row) * grid_.width + col];
+        count = add ? count + 1 : count - 1;
+        write[static_cast<std::size_t>((row / tile) * tiles_x_ + col / tile)] = 1;
+      });
     };
     for (const auto& r : removed)
     {

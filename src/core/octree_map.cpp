@@ -217,8 +217,8 @@ public:
       dense_.assign(static_cast<std::size_t>(n), 0);
     }
   }
-  /// Sets bits on c; returns the bits it had before.
-  std::uint8_t mark(const Cell& c, std::uint8_t bits)
+  /// Sets bits on c.
+  void mark(const Cell& c, std::uint8_t bits)
   {
     // Rounding at a cell corner may step a traversal one cell past the box; such cells are skipped.
     const Cell d = c - lo_;
@@ -226,19 +226,9 @@ public:
         static_cast<unsigned>(d.y()) >= static_cast<unsigned>(size_.y()) ||
         static_cast<unsigned>(d.z()) >= static_cast<unsigned>(size_.z()))
     {
-      return 0;
+      return;
     }
-    if (!dense_.empty())
-    {
-      std::uint8_t& v = dense_[index(c)];
-      const std::uint8_t before = v;
-      v |= bits;
-      return before;
-    }
-    std::uint8_t& v = sparse_[packCell(c)];
-    const std::uint8_t before = v;
-    v |= bits;
-    return before;
+    (dense_.empty() ? sparse_[packCell(c)] : dense_[index(c)]) |= bits;
   }
   /// Calls visit(cell, bits) for every marked cell, in a fixed order.
   template <typename Visit>

@@ -295,8 +295,8 @@ class Conductor:
             if self._resume_state == State.GOAL and self.goal_xy is not None:
                 actions.append(Action(ActionKind.GOAL, self.goal_xy))  # the map may be new
             elif self._resume_state == State.START and not obs_scan_running:
-                # The scan ended while tracking was lost. Starting it afresh each time let a robot
-                # that keeps losing tracking scan forever; the phase's bounded rules decide.
+                # The scan ended while tracking was lost: cut short. Not restarted here (a robot
+                # that keeps losing tracking would scan forever); the phase's bounded rules decide.
                 self._scan_started = self._scan_cut = True
             return actions
         if obs.map_ready and obs.robot_in_obstacle and not obs.scan_running:

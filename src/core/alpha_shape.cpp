@@ -19,6 +19,17 @@ using Point2 = Kernel::Point_2;
 using Delaunay = CGAL::Delaunay_triangulation_2<Kernel>;
 using Face = Delaunay::Face_handle;
 
+Delaunay triangulate(const PointList2D& points)
+{
+  std::vector<Point2> cgal_points;
+  cgal_points.reserve(points.size());
+  for (const auto& p : points)
+  {
+    cgal_points.emplace_back(p.x(), p.y());
+  }
+  return Delaunay(cgal_points.begin(), cgal_points.end());
+}
+
 Eigen::Vector2d toEigen(const Point2& p)
 {
   return Eigen::Vector2d(p.x(), p.y());
@@ -73,13 +84,7 @@ AlphaShapeResult computeAlphaShape(const PointList2D& points, double alpha_m)
   {
     return out;
   }
-  std::vector<Point2> cgal_points;
-  cgal_points.reserve(points.size());
-  for (const auto& p : points)
-  {
-    cgal_points.emplace_back(p.x(), p.y());
-  }
-  Delaunay dt(cgal_points.begin(), cgal_points.end());
+  const Delaunay dt = triangulate(points);
   if (dt.dimension() < 2)
   {
     collinearSegments(points, alpha_m, out);
@@ -170,13 +175,7 @@ double automaticAlpha(const PointList2D& points, const AlphaShapeConfig& config,
   {
     return std::min(config.alpha_m, upper);
   }
-  std::vector<Point2> cgal_points;
-  cgal_points.reserve(points.size());
-  for (const auto& p : points)
-  {
-    cgal_points.emplace_back(p.x(), p.y());
-  }
-  Delaunay dt(cgal_points.begin(), cgal_points.end());
+  const Delaunay dt = triangulate(points);
   // The nearest neighbour of a point is always one of its Delaunay neighbours.
   std::vector<double> spacing;
   spacing.reserve(dt.number_of_vertices());

@@ -347,7 +347,7 @@ def test_go_to_wall_notices_a_stall_with_the_fail_counter():
 
 
 def test_blocked_robot_stops_until_a_different_path():
-    c = MotionController(MotionConfig(stall_timeout_s=3.0, stall_fraction=0.3))
+    c = MotionController(MotionConfig(stall_timeout_s=3.0, stall_fraction=0.3, bump_max_tries=0))
     path = [[0, 0], [3, 0]]
     c.set_path(path, 0.0, 0.0)
     t, dt, x = 0.0, 0.1, 0.0
@@ -371,7 +371,7 @@ def test_blocked_robot_stops_until_a_different_path():
 
 
 def test_blocked_robot_ignores_a_republished_path_that_starts_at_its_jittering_pose():
-    c = MotionController(MotionConfig(stall_timeout_s=3.0, stall_fraction=0.3))
+    c = MotionController(MotionConfig(stall_timeout_s=3.0, stall_fraction=0.3, bump_max_tries=0))
     rng = np.random.default_rng(3)
     t, dt = 0.0, 0.1
     states = []
@@ -392,7 +392,7 @@ def test_blocked_robot_ignores_a_republished_path_that_starts_at_its_jittering_p
 
 
 def test_a_drone_meeting_an_obstacle_on_its_path_stops_until_another_route():
-    c = MotionController(MotionConfig(robot="drone"))
+    c = MotionController(MotionConfig(robot="drone", bump_max_tries=0))
     c.set_pose(0.0, 0.0, 0.0, 0.0, 0.0)
     c.set_path([[0.0, 0.0], [2.0, 0.0]], 0.0, 0.0)
     assert c.step(0.0).state == FOLLOWING
@@ -414,3 +414,90 @@ def test_turning_creep_against_a_wall_is_not_a_stall():
         d = c.step(t)
         c.follow_moved(d.linear_m_s * 0.1, 0.0, t + 0.1)
         assert d.state == FOLLOWING
+
+
+def _drive_through_one_rooms_door(config, path):
+    """The simulated ground robot follows ``path`` in one_room; wheel odometry reports its
+    advance. Returns the states, the robot and the controller."""
+    world = load_world("one_room")
+    robot = GroundRobot(world, SimConfig(), np.random.default_rng(0))
+    c = MotionController(config)
+    t, dt, states = 0.0, 0.05, []
+    while t < 120.0:
+        x, y, _, yaw = robot.pose()
+        c.set_pose(x, y, yaw, t, t)
+        c.set_path(path, t, t)                        # the navigator republishes it
+        d = c.step(t)
+        states.append(d.state)
+        if d.state in (REACHED, FAILED):
+            break
+        robot.set_cmd_vel(d.linear_m_s, d.angular_rad_s)
+        robot.step(dt)
+        t += dt
+        x1, y1, _, _ = robot.pose()
+        c.follow_moved(d.linear_m_s * dt, (x1 - x) * math.cos(yaw) + (y1 - y) * math.sin(yaw), t)
+    return states, robot, c
+
+
+# one_room's exit is a 0.9 m door at the end of a 1 m wide recess (x 5-6, y 5-5.8). This path
+# turns into the recess 0.2 m from its west wall, closer than the robot's 0.25 m radius, as a
+# squeezed path through a thickly mapped door does; cutting the turn takes the robot closer still.
+_TOO_CLOSE_TO_THE_JAMB = [[3.0, 2.5], [5.2, 4.2], [5.2, 6.6]]
+
+
+def test_a_robot_blocked_at_a_door_jamb_stops_without_tries():
+    states, robot, c = _drive_through_one_rooms_door(MotionConfig(bump_max_tries=0),
+                                                     _TOO_CLOSE_TO_THE_JAMB)
+    assert states[-1] == FAILED and robot.collisions >= 1
+    assert "blocked" in c.blocked and "tries" not in c.blocked
+    assert robot.pose()[1] < 5.8                       # still inside
+
+
+def test_a_robot_blocked_at_a_door_jamb_backs_off_and_passes_beside_the_path():
+    states, robot, c = _drive_through_one_rooms_door(MotionConfig(), _TOO_CLOSE_TO_THE_JAMB)
+    x, y, _, _ = robot.pose()
+    assert states[-1] == REACHED and y > 6.3, (x, y)
+    assert robot.collisions >= 1                       # it was blocked, and got through
+    assert FAILED not in states
+    assert c._bump is None                             # the tries ended once it was through
+
+
+def test_each_try_takes_the_other_side_and_then_the_robot_stops():
+    c = MotionController(MotionConfig(bump_max_tries=2, bump_back_off_m=0.3))
+    path = [[0.0, 0.0], [3.0, 0.0]]
+    t, dt, x = 0.0, 0.1, 0.0
+    reasons = []
+    while t < 40.0 and not c.blocked:
+        c.set_pose(x, 0.0, 0.0, t, t)
+        c.set_path(path, t, t)
+        d = c.step(t)
+        if not reasons or reasons[-1] != d.reason:
+            reasons.append(d.reason)
+        x += min(d.linear_m_s * dt, 1.0 - x)           # a wall at x = 1 m the map does not show
+        t += dt
+        c.follow_moved(d.linear_m_s * dt, min(d.linear_m_s * dt, 1.0 - x), t)
+    tries = [r for r in reasons if "backing off" in r]
+    assert len(tries) == 2 and "left" in tries[0] and "right" in tries[1]
+    assert "try 1 of 2" in tries[0] and "try 2 of 2" in tries[1]
+    assert c.step(t).state == FAILED and "2 shifted tries failed" in c.blocked
+    c.set_path([[x, 0.0], [x, 2.0]], t, t)              # another route: tries of its own
+    assert c.step(t).state == FOLLOWING and c._bump is None
+
+
+def test_a_drone_meeting_an_obstacle_backs_off_once_and_aims_beside_the_path():
+    c = MotionController(MotionConfig(robot="drone", bump_back_off_m=0.3, bump_shift_m=0.15))
+    c.set_pose(0.0, 0.0, 0.0, 0.0, 0.0)
+    c.set_path([[0.0, 0.0], [1.0, 1.0], [1.0, 3.0]], 0.0, 0.0)   # bends left
+    c.step(0.0)
+    c.set_pose(0.75, 0.85, math.pi / 4, 0.1, 0.1)  # cutting the corner: strayed to the left
+    c.step(0.1)
+    c.path_blocked("Tello answered 'error: obstacle' to 'forward 100'")
+    d = c.step(0.2)
+    assert d.state == FOLLOWING and d.command == "back 30" and "right" in d.reason
+    assert c.step(0.3).command != "back 30"            # one command carries the whole move
+    shifted = c.follower.target(*c.pose)
+    c.follower.shift(None, 0.0, 0.0)
+    plain = c.follower.target(*c.pose)
+    # The look-ahead point lies on the part heading +y, whose right is +x.
+    assert plain.point[0] == pytest.approx(1.0)
+    assert shifted.point == pytest.approx(plain.point + [0.15, 0.0])

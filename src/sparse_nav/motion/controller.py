@@ -56,6 +56,14 @@ class MotionConfig:
     #                                    distance over this window means blocked: stop
     route_tolerance_m: float = 0.1     # a blocked robot waits for a path whose route (after its
     #                                    first point, the robot) leaves the old one by more
+    bump_max_tries: int = 2            # blocked while following: tries shifted sideways (first
+    #                                    away from the side the robot strayed to or the path bends
+    #                                    toward, then the other) before it stops (FAILED)
+    bump_back_off_m: float = 0.3       # each try starts by backing off this far, room to turn
+    bump_shift_m: float = 0.15         # it then aims this far beside the path ...
+    bump_radius_m: float = 1.5         # ... while the look-ahead point is within this of the spot
+    #                                    (a recess and its door: both jambs are passed shifted)
+    bump_speed_m_s: float = 0.15       # ground robot's backing-off speed
 
     def validate(self):
         if self.robot not in ("ground", "drone"):
@@ -93,6 +101,14 @@ class MotionConfig:
             raise ValueError("stall_timeout_s must be > 0")
         if not (math.isfinite(self.route_tolerance_m) and self.route_tolerance_m >= 0):
             raise ValueError("route_tolerance_m must be finite and >= 0")
+        if self.bump_max_tries < 0:
+            raise ValueError("bump_max_tries must be >= 0")
+        for name in ("bump_back_off_m", "bump_shift_m"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {getattr(self, name)}")
+        for name in ("bump_radius_m", "bump_speed_m_s"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"{name} must be finite and > 0, got {getattr(self, name)}")
 
 
 class StalenessGuard:
@@ -240,6 +256,9 @@ class MotionController:
         self.blocked = ""                # why the path cannot be followed further, or ""
         self._progress = collections.deque()   # (stamp_s, commanded_m, measured_m)
         self._last_linear = 0.0
+        self._bump = None                # (xy where blocked, side +1 left / -1 right, why)
+        self._bump_tries = 0
+        self._backing_left_m = 0.0
 
     @property
     def goal_tolerance_m(self):
@@ -274,6 +293,8 @@ class MotionController:
         tolerance = self.cfg.route_tolerance_m
         if self.follower.set_path(points) and not _same_route(before, self.follower.points,
                                                                tolerance):
+            if self.blocked:
+                self._end_bump()     # a new route after the tries: it gets tries of its own
             self._unblock()
         self.guard.mark("path", now_s)
         self.mode = "path"
@@ -285,6 +306,7 @@ class MotionController:
             return
         if self.map_index is not None and map_index != self.map_index:
             self.map_switch_s = stamp_s
+            self._end_bump()
             self.follower.clear()
             self.guard.forget("path")
             self.idle_reason = f"SLAM map switched to {map_index}: waiting for a new path"
@@ -292,15 +314,19 @@ class MotionController:
 
     def path_blocked(self, reason):
         """Following a path, the robot met an obstacle the map does not show (a drone's "error:
-        obstacle"): it stops (FAILED) until a path with another route arrives."""
+        obstacle"): see _blocked_by."""
         if self.mode == "path" and self.follower.points is not None:
-            self.blocked = f"blocked: {reason}; waiting for a different path"
+            self._blocked_by(reason)
 
     def follow_moved(self, commanded_m, measured_m, now_s):
         """Ground robot following a path: forward distance commanded since the last step and the
         distance the wheel odometry advanced (m). Less than stall_fraction of the commanded
-        distance over the last stall_timeout_s means blocked: the robot stops (FAILED) until a
-        different path arrives."""
+        distance over the last stall_timeout_s means blocked (see _blocked_by)."""
+        if self._backing_left_m > 0:
+            # Dead reckoning, as go-to-wall's backing off: it must end even if held from behind.
+            self._backing_left_m -= max(-commanded_m, 0.0)
+            self._progress.clear()
+            return
         if self.mode != "path" or self.follower.points is None or measured_m is None:
             self._progress.clear()
             return
@@ -315,8 +341,35 @@ class MotionController:
         measured = sum(m for _, _, m in self._progress)
         if span >= 0.9 * self.cfg.stall_timeout_s and commanded > 0.02 \
                 and measured < self.cfg.stall_fraction * commanded:
-            self.blocked = (f"blocked: advanced {measured:.2f} m of {commanded:.2f} m commanded "
-                            f"in {span:.1f} s; waiting for a different path")
+            self._blocked_by(f"advanced {measured:.2f} m of {commanded:.2f} m commanded in "
+                             f"{span:.1f} s")
+
+    def _blocked_by(self, why):
+        """Something the map does not show stopped the robot on its path, most often a door jamb
+        that a path through a narrow, thickly mapped door passes too closely. While tries are
+        left the robot backs off and aims bump_shift_m beside the path past that spot, away from
+        the side it strayed to first (a robot cutting a corner meets the jamb on the inside),
+        the other side next; then it stops (FAILED) until a path with another route arrives."""
+        self._progress.clear()
+        if self._backing_left_m > 0 or self.blocked:
+            return
+        if self.pose is None or self._bump_tries >= self.cfg.bump_max_tries:
+            tried = f" ({self._bump_tries} shifted tries failed)" if self._bump_tries else ""
+            self.blocked = f"blocked: {why}{tried}; waiting for a different path"
+            return
+        xy = np.array(self.pose[:2])
+        if self._bump is None:
+            side = -self.follower.side_of(xy) or 1
+        else:
+            side = -self._bump[1]
+        self._bump_tries += 1
+        self._bump = (xy, side, why)
+        self._backing_left_m = self.cfg.bump_back_off_m
+        self.follower.shift(xy, self.cfg.bump_radius_m, side * self.cfg.bump_shift_m)
+
+    def _end_bump(self):
+        self._bump, self._bump_tries, self._backing_left_m = None, 0, 0.0
+        self.follower.shift(None, 0.0, 0.0)
 
     def _unblock(self):
         self.blocked = ""
@@ -328,6 +381,7 @@ class MotionController:
     def start_wall(self):
         """Begin go-to-wall in the current heading (the path, if any, is dropped)."""
         self._unblock()
+        self._end_bump()
         self.follower.clear()
         self.guard.forget("path")
         self.mode = "wall"
@@ -335,6 +389,7 @@ class MotionController:
 
     def stop(self, reason="stopped on request"):
         self._unblock()
+        self._end_bump()
         self.follower.clear()
         self.guard.forget("path")
         self.mode = "path"
@@ -363,6 +418,10 @@ class MotionController:
             return Decision(STOPPED_STALE, "stale input: " + ", ".join(
                 f"{name} never received" if age is None else f"{name} {age:.2f} s old"
                 for name, age in stale))
+        if self._bump is not None:
+            recovering = self._bump_step()
+            if recovering is not None:
+                return recovering
         target = self.follower.target(*self.pose)
         heading_deg = math.degrees(target.heading_error)
         if target.reached:
@@ -379,6 +438,27 @@ class MotionController:
             return decision
         decision.linear_m_s, decision.angular_rad_s = self._velocity(target)
         self._last_linear = decision.linear_m_s
+        return decision
+
+    def _bump_step(self):
+        """The backing-off Decision of a try, or None to follow the (shifted) path. The try ends
+        once the robot is bump_radius_m away from where it was blocked (through, or elsewhere)."""
+        xy, side, why = self._bump
+        if self._backing_left_m <= 0:
+            if math.dist(self.pose[:2], xy) > self.cfg.bump_radius_m:
+                self._end_bump()
+            return None
+        toward = "left" if side > 0 else "right"
+        decision = Decision(FOLLOWING, f"blocked ({why}): backing off, then "
+                            f"{self.cfg.bump_shift_m:.2f} m to the {toward} of the path (try "
+                            f"{self._bump_tries} of {self.cfg.bump_max_tries})", moving=True)
+        if self.cfg.robot == "drone":
+            decision.command = "back %d" % max(TELLO_MIN_MOVE_CM, min(
+                TELLO_MAX_MOVE_CM, int(round(self._backing_left_m * 100))))
+            self._backing_left_m = 0.0       # one Tello command carries the whole move
+        else:
+            decision.linear_m_s = -self.cfg.bump_speed_m_s
+            self._last_linear = decision.linear_m_s
         return decision
 
     def _velocity(self, target):

@@ -54,6 +54,7 @@ class PathFollower:
         self._cum = None
         self._progress_m = 0.0
         self._global_projection = True
+        self._shift = None           # (centre xy, radius_m, offset_m): see shift()
 
     def set_path(self, points):
         """Follow ``points`` (N, 2) m from its start; returns False when it is the path already
@@ -79,16 +80,49 @@ class PathFollower:
     def clear(self):
         self.points = None
 
+    def shift(self, centre_xy, radius_m, offset_m):
+        """Aim ``offset_m`` to the left of the path (negative: right) wherever the look-ahead
+        point lies within ``radius_m`` of ``centre_xy``. Anchored in the map rather than on one
+        path, so a replanned path around the same spot is shifted too; ``offset_m`` 0 ends it."""
+        self._shift = None if offset_m == 0 else (np.asarray(centre_xy, float), radius_m, offset_m)
+
+    def side_of(self, xy):
+        """Which side of the path the robot at ``xy`` has strayed to or the path bends toward
+        (+1 left, -1 right, 0 neither): the side a corner-cutting robot meets first."""
+        if self.points is None or len(self.points) < 2:
+            return 0
+        s = self._progress_m
+        here = self._point_at(s)
+        tangent = self._tangent_at(s)
+        lateral = float(tangent[0] * (xy[1] - here[1]) - tangent[1] * (xy[0] - here[0]))
+        if abs(lateral) > 0.03:
+            return 1 if lateral > 0 else -1
+        before = self._tangent_at(s - self.lookahead_m)
+        after = self._tangent_at(s + self.lookahead_m)
+        bend = float(before[0] * after[1] - before[1] * after[0])
+        if abs(bend) > math.sin(math.radians(10.0)):
+            return 1 if bend > 0 else -1
+        return 0
+
+    def _tangent_at(self, s):
+        i, _ = self._segment_at(s)
+        d = self.points[i + 1] - self.points[i]
+        return d / np.linalg.norm(d)
+
     @property
     def length_m(self):
         return float(self._cum[-1]) if self.points is not None else 0.0
 
-    def _point_at(self, s):
+    def _segment_at(self, s):
+        """(segment index, fraction along it) of arc length ``s``, clamped to the path."""
         s = min(max(s, 0.0), self._cum[-1])
         i = int(np.searchsorted(self._cum, s, side="right")) - 1
         i = min(max(i, 0), len(self.points) - 2)
         span = self._cum[i + 1] - self._cum[i]
-        t = 0.0 if span <= 0 else (s - self._cum[i]) / span
+        return i, 0.0 if span <= 0 else (s - self._cum[i]) / span
+
+    def _point_at(self, s):
+        i, t = self._segment_at(s)
         return self.points[i] + t * (self.points[i + 1] - self.points[i])
 
     def _project(self, xy):
@@ -124,8 +158,14 @@ class PathFollower:
         if len(self.points) == 1 or to_end <= self.lookahead_m:
             point, is_end = end, True
         else:
-            point = self._point_at(self._progress_m + self.lookahead_m)
-            is_end = self._progress_m + self.lookahead_m >= self.length_m
+            s_ahead = self._progress_m + self.lookahead_m
+            point = self._point_at(s_ahead)
+            is_end = s_ahead >= self.length_m
+            if self._shift is not None and not is_end:
+                centre, radius, offset = self._shift
+                if np.linalg.norm(point - centre) <= radius:
+                    t = self._tangent_at(s_ahead)
+                    point = point + offset * np.array([-t[1], t[0]])
         delta = point - xy
         distance = float(np.linalg.norm(delta))
         reached = to_end <= self.goal_tolerance_m and remaining <= self.lookahead_m

@@ -34,7 +34,8 @@ def _config_from_params():
                       "pose_timeout_s", "map_timeout_s", "path_timeout_s", "tracked_timeout_s",
                       "wall_min_tracked_points", "wall_max_fails", "wall_speed_m_s", "wall_step_cm",
                       "wall_back_off_m", "wall_max_distance_m", "stall_fraction",
-                      "stall_timeout_s", "route_tolerance_m"))
+                      "stall_timeout_s", "route_tolerance_m", "bump_max_tries",
+                      "bump_back_off_m", "bump_shift_m", "bump_radius_m", "bump_speed_m_s"))
     cfg.validate()
     return cfg
 

@@ -376,7 +376,12 @@ def test_navigator_failures_count_after_a_grace_time_and_refind_the_exit():
     m.tick(navigator_state="no_path")
     assert kinds(m.tick(dt=3.0)) == [ActionKind.GOAL]  # first failure: goal sent again
     m.tick()
-    assert kinds(m.tick(dt=3.0)) == [ActionKind.FIND_EXIT]
+    # The finder would read the same map and answer the same: scan more, then ask it.
+    actions = m.tick(dt=3.0)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.CANCEL_GOAL, None),
+                                                      (ActionKind.SCAN, "random")]
+    assert m.conductor.phase == Phase.WALL_SCAN and "no_path" in m.conductor.reason
+    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
     assert m.conductor.phase == Phase.FIND_EXIT
 
 
@@ -407,7 +412,8 @@ def test_an_unreachable_exit_gives_way_to_the_next_candidate():
     actions = m.tick(dt=3.0)
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (3.0, 3.0))]
     m.tick(navigator_state="no_path")
-    assert kinds(m.tick(dt=3.0)) == [ActionKind.FIND_EXIT]  # no candidate left: ask again
+    # No candidate left: scan more, then ask again.
+    assert kinds(m.tick(dt=3.0)) == [ActionKind.CANCEL_GOAL, ActionKind.SCAN]
 
 
 def test_stop_and_return_to_start():
@@ -432,6 +438,8 @@ def test_bad_config_is_refused():
         Conductor(ConductorConfig(max_scan_rounds=0))
     with pytest.raises(ValueError, match="lost_timeout_s"):
         Conductor(ConductorConfig(lost_timeout_s=float("nan")))
+    with pytest.raises(ValueError, match="max_goal_losses"):
+        Conductor(ConductorConfig(max_goal_losses=0))
 
 
 def run(runner, outcomes):
@@ -503,3 +511,44 @@ def test_scan_runner_protocol_errors():
         runner.next_step()
     with pytest.raises(ValueError):
         ScanRunner([], ScanRunnerConfig(slow_factor=0.0))
+
+
+def losing_tracking_on_the_way(m, robot_xy, times):
+    """``times`` losses at robot_xy, each relocalised; the actions on the last recovery."""
+    actions = []
+    for _ in range(times):
+        m.tick(robot_xy=robot_xy, tracking_lost=False)
+        m.tick(tracking_lost=True)
+        m.tick(scan_running=True)
+        actions = m.tick(tracking_lost=False, scan_running=False)
+    return actions
+
+
+def test_losing_tracking_again_and_again_without_coming_closer_gives_up_that_exit():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, max_goal_losses=3))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 4.0),))
+    m.tick(robot_xy=(1.0, 0.0), navigator_state="following")
+    actions = losing_tracking_on_the_way(m, (2.0, 0.0), 2)
+    assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.GOAL, (5.0, 0.0))
+    actions = losing_tracking_on_the_way(m, (2.1, 0.0), 1)    # the third, no closer
+    assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.GOAL, (0.0, 4.0))
+    assert m.conductor.exit_xy == (0.0, 4.0)
+    assert "tracking lost 3 times on the way to the exit (5.00, 0.00)" in m.conductor.reason
+    # Without a candidate left: scan more, then the finder again.
+    losing_tracking_on_the_way(m, (0.5, 3.0), 2)
+    actions = losing_tracking_on_the_way(m, (0.5, 3.0), 1)
+    assert kinds(actions)[-2:] == [ActionKind.CANCEL_GOAL, ActionKind.SCAN]
+    assert m.conductor.phase == Phase.WALL_SCAN
+
+
+def test_losses_on_a_route_that_makes_progress_do_not_count():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, max_goal_losses=2))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    for x in (1.0, 2.0, 3.0, 4.0):    # a loss every metre: a forced loss every 30 s, say
+        actions = losing_tracking_on_the_way(m, (x, 0.0), 1)
+        assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.GOAL, (5.0, 0.0))
+    assert m.conductor.phase == Phase.GO_TO_EXIT and m.conductor.exit_xy == (5.0, 0.0)

@@ -93,6 +93,9 @@ class ConductorConfig:
     max_exit_attempts: int = 3           # exit finder answers without an exit before giving up
     exit_answer_timeout_s: float = 20.0  # no answer from the exit finder in this time: retry
     max_goal_failures: int = 3           # navigator no_path/goal_in_obstacle answers per goal
+    max_goal_losses: int = 3             # tracking lost this often in a row on the way to an
+                                         # exit, never stall_progress_m closer between losses:
+                                         # a route the camera cannot track along; next exit
     goal_failure_grace_s: float = 10.0   # a failure must last this long to count (replanning)
     pass_through_m: float = 1.5          # beyond the exit, away from the room
     exit_check_near_m: float = 0.3       # the map is asked about free space this far beyond an
@@ -110,7 +113,8 @@ class ConductorConfig:
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
 
     def validate(self):
-        for name in ("max_scan_rounds", "max_exit_attempts", "max_goal_failures"):
+        for name in ("max_scan_rounds", "max_exit_attempts", "max_goal_failures",
+                     "max_goal_losses"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
@@ -184,6 +188,8 @@ class Conductor:
         self._goal_failures = 0
         self._failure_since_s = None
         self._progress = None  # (time, best distance to the goal) of the last progress
+        self._goal_losses = 0  # losses in a row on the way to the goal without coming closer
+        self._loss_distance = None  # the closest to the goal at those losses
         self._lost_since_s = None
         self._recover_since_s = None
         self._scan_started = False
@@ -273,6 +279,7 @@ class Conductor:
             if self.state != State.LOST:
                 self._resume_state = self.state
                 self._lost_since_s = t
+                self._count_goal_loss()
                 if self.state == State.START and obs.scan_running:
                     # The scan's retry mechanism undoes and redoes steps until tracking is back.
                     self._set(t, State.LOST, self.phase, "SLAM tracking lost: the scan retries")
@@ -292,6 +299,11 @@ class Conductor:
                 obs_scan_running = False
             else:
                 obs_scan_running = obs.scan_running
+            if (self._resume_state == State.GOAL and self.phase == Phase.GO_TO_EXIT
+                    and self._goal_losses >= cfg.max_goal_losses):
+                why = (f"SLAM tracking lost {self._goal_losses} times on the way to the exit "
+                       f"({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f}) without coming closer")
+                return actions + self._next_exit(t, why, why, scan_first=True)
             if self._resume_state == State.GOAL and self.goal_xy is not None:
                 actions.append(Action(ActionKind.GOAL, self.goal_xy))  # the map may be new
             elif self._resume_state == State.START and not obs_scan_running:
@@ -313,6 +325,20 @@ class Conductor:
             if self._resume_state == State.GOAL and self.goal_xy is not None:
                 return [Action(ActionKind.GOAL, self.goal_xy)]
         return None
+
+    def _count_goal_loss(self):
+        """A loss on the way to an exit counts when the robot came no closer since the last one
+        (a forced or occasional loss on a route that makes progress does not)."""
+        if self.state != State.GOAL or self.phase != Phase.GO_TO_EXIT \
+                or self._last_tracked_xy is None or self.goal_xy is None:
+            return
+        distance = math.dist(self._last_tracked_xy, self.goal_xy)
+        if self._loss_distance is not None \
+                and distance > self._loss_distance - self.config.stall_progress_m:
+            self._goal_losses += 1
+        else:
+            self._goal_losses = 1
+        self._loss_distance = min(distance, self._loss_distance or math.inf)
 
     def _start_state(self, t, obs):
         cfg = self.config
@@ -389,6 +415,7 @@ class Conductor:
         self._goal_failures = 0
         self._failure_since_s = None
         self._progress = None
+        self._goal_losses, self._loss_distance = 0, None
         self._set(t, State.GOAL, phase, why)
         return [Action(ActionKind.GOAL, self.goal_xy)]
 
@@ -436,7 +463,8 @@ class Conductor:
                     if self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH):
                         # The finder ranks several exits: an unreachable one is likely wrong.
                         return self._next_exit(t, f"{failure} at the exit ({self.exit_xy[0]:.2f}, "
-                                                  f"{self.exit_xy[1]:.2f})", given_up)
+                                                  f"{self.exit_xy[1]:.2f})", given_up,
+                                               scan_first=True)
                     return self._give_up(t, given_up)
                 self._progress = None
                 return [Action(ActionKind.GOAL, self.goal_xy)]
@@ -455,15 +483,20 @@ class Conductor:
         self._alternatives = [c for c in self._alternatives if not self._was_rejected(c, map_index)]
         return self._next_exit(t, why, f"{why}, and no candidate is left")
 
-    def _next_exit(self, t, why, given_up):
-        """The finder's next candidate; else the finder again while attempts are left; else give
-        up with the reason given_up."""
+    def _next_exit(self, t, why, given_up, scan_first=False):
+        """The finder's next candidate; else the finder again while attempts are left, after a
+        random scan with ``scan_first`` (an exit that could not be reached is in the map the
+        finder would read again, and it would answer the same); else give up with the reason
+        given_up."""
         if self._alternatives:
             self.exit_xy = self._alternatives.pop(0)
             return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
                                   f"{why}: next candidate ({self.exit_xy[0]:.2f}, "
                                   f"{self.exit_xy[1]:.2f})")
         if self._exit_attempts < self.config.max_exit_attempts:
+            if scan_first:
+                self._set(t, State.START, Phase.WALL_SCAN, f"{why}: scan more")
+                return [Action(ActionKind.CANCEL_GOAL), self._scan("random")]
             return self._ask_exit(t, f"{why}; look for the exit again")
         return self._give_up(t, given_up)
 

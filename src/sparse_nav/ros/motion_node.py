@@ -255,6 +255,10 @@ class MotionNode:
             self._publish_status_raw(FAILED, self.last_problem)
 
     def _publish_status(self, decision):
+        previous = self.last_decision
+        if decision.reason.startswith("blocked") and (previous is None
+                                                      or previous.reason != decision.reason):
+            rospy.logwarn("motion: %s", decision.reason)
         self.last_decision = decision
         msg = MotionStatus()
         msg.header.stamp = rospy.Time.now()

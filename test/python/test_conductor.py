@@ -397,6 +397,16 @@ def test_a_failing_motion_layer_counts_like_a_navigator_failure():
     assert m.conductor.reason == "motion failed 1 times"
 
 
+def test_a_robot_blocked_at_an_exit_without_candidates_asks_the_finder_again_at_once():
+    m = Mission(ConductorConfig(goal_failure_grace_s=2.0, max_goal_failures=1))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    m.tick(navigator_state="following", motion_failed=True)
+    assert kinds(m.tick(dt=3.0)) == [ActionKind.FIND_EXIT]   # no scan: the map is not to blame
+    assert "motion failed at the exit" in m.conductor.reason
+
+
 def test_an_unreachable_exit_gives_way_to_the_next_candidate():
     m = Mission(ConductorConfig(goal_failure_grace_s=2.0, max_goal_failures=1))
     m.tick(start_requested=True)

@@ -462,26 +462,50 @@ def test_a_robot_blocked_at_a_door_jamb_backs_off_and_passes_beside_the_path():
     assert c._bump is None                             # the tries ended once it was through
 
 
-def test_each_try_takes_the_other_side_and_then_the_robot_stops():
-    c = MotionController(MotionConfig(bump_max_tries=2, bump_back_off_m=0.3))
+def _pushing_on_walls(c, walls_x, until_s=60.0):
+    """A robot following y = 0 toward x = 3 that the first wall in walls_x beyond it stops (the
+    map shows none); the wall it is stopped by is taken away once it stopped there a second time.
+    Returns each new reason of the controller and the time at the end."""
     path = [[0.0, 0.0], [3.0, 0.0]]
-    t, dt, x = 0.0, 0.1, 0.0
+    walls = list(walls_x)
+    t, dt, x, stops = 0.0, 0.1, 0.0, 0
     reasons = []
-    while t < 40.0 and not c.blocked:
+    while t < until_s and not c.blocked:
         c.set_pose(x, 0.0, 0.0, t, t)
         c.set_path(path, t, t)
         d = c.step(t)
         if not reasons or reasons[-1] != d.reason:
             reasons.append(d.reason)
-        x += min(d.linear_m_s * dt, 1.0 - x)           # a wall at x = 1 m the map does not show
+            if "try 2 of" in d.reason and len(walls) > 1:
+                walls.pop(0)
+        limit = walls[0] if walls else 10.0
+        advance = min(d.linear_m_s * dt, limit - x)
+        x += advance
         t += dt
-        c.follow_moved(d.linear_m_s * dt, min(d.linear_m_s * dt, 1.0 - x), t)
+        c.follow_moved(d.linear_m_s * dt, advance, t)
+    return reasons, t
+
+
+def test_each_try_takes_the_other_side_with_a_growing_shift_and_then_the_robot_stops():
+    c = MotionController(MotionConfig(bump_max_tries=4, bump_back_off_m=0.3, bump_shift_m=0.15))
+    reasons, t = _pushing_on_walls(c, [1.0])
     tries = [r for r in reasons if "backing off" in r]
-    assert len(tries) == 2 and "left" in tries[0] and "right" in tries[1]
-    assert "try 1 of 2" in tries[0] and "try 2 of 2" in tries[1]
-    assert c.step(t).state == FAILED and "2 shifted tries failed" in c.blocked
-    c.set_path([[x, 0.0], [x, 2.0]], t, t)              # another route: tries of its own
+    assert [("left" if "left" in r else "right", r.split("then ")[1][:4]) for r in tries] == [
+        ("left", "0.15"), ("right", "0.15"), ("left", "0.30"), ("right", "0.30")]
+    assert [f"try {k} of 4" in r for k, r in enumerate(tries, 1)] == [True] * 4
+    assert c.step(t).state == FAILED and "4 shifted tries failed" in c.blocked
+    c.set_path([[1.0, 0.0], [1.0, 2.0]], t, t)          # another route: tries of its own
     assert c.step(t).state == FOLLOWING and c._bump is None
+
+
+def test_blocked_again_past_the_spot_is_a_new_spot_tried_first_on_the_side_that_worked():
+    c = MotionController(MotionConfig(bump_max_tries=2, bump_back_off_m=0.3))
+    # Stopped at x = 1 (left, then right: that wall goes), then again at x = 2.
+    reasons, _ = _pushing_on_walls(c, [1.0, 2.0])
+    tries = [r for r in reasons if "backing off" in r]
+    assert ["left" in r for r in tries] == [True, False, False, True]
+    assert ["try 1 of 2" in r for r in tries] == [True, False, True, False]
+    assert "2 shifted tries failed" in c.blocked
 
 
 def test_a_drone_meeting_an_obstacle_backs_off_once_and_aims_beside_the_path():

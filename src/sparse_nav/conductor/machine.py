@@ -462,9 +462,11 @@ class Conductor:
                     given_up = f"{failure} {self._goal_failures} times"
                     if self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH):
                         # The finder ranks several exits: an unreachable one is likely wrong.
+                        # A map without a path to it is read again only after more of
+                        # it is seen; a robot blocked or stalled there may try it once more.
                         return self._next_exit(t, f"{failure} at the exit ({self.exit_xy[0]:.2f}, "
                                                   f"{self.exit_xy[1]:.2f})", given_up,
-                                               scan_first=True)
+                                               scan_first=obs.navigator_state in _FAILED_NAVIGATION)
                     return self._give_up(t, given_up)
                 self._progress = None
                 return [Action(ActionKind.GOAL, self.goal_xy)]

@@ -56,10 +56,12 @@ class MotionConfig:
     #                                    distance over this window means blocked: stop
     route_tolerance_m: float = 0.1     # a blocked robot waits for a path whose route (after its
     #                                    first point, the robot) leaves the old one by more
-    bump_max_tries: int = 2            # blocked while following: tries shifted sideways (first
-    #                                    away from the side the robot strayed to or the path bends
-    #                                    toward, then the other) before it stops (FAILED)
-    bump_back_off_m: float = 0.3       # each try starts by backing off this far, room to turn
+    bump_max_tries: int = 4            # blocked while following: tries shifted sideways at one
+    #                                    spot before it stops (FAILED); sides alternate, first away
+    #                                    from the side the robot strayed to or the path bends
+    #                                    toward, and the shift grows by bump_shift_m every two
+    bump_back_off_m: float = 0.3       # each try starts by backing off this far, room to turn;
+    #                                    blocked farther than this from the last spot is a new one
     bump_shift_m: float = 0.15         # it then aims this far beside the path ...
     bump_radius_m: float = 1.5         # ... while the look-ahead point is within this of the spot
     #                                    (a recess and its door: both jambs are passed shifted)
@@ -353,19 +355,29 @@ class MotionController:
         self._progress.clear()
         if self._backing_left_m > 0 or self.blocked:
             return
-        if self.pose is None or self._bump_tries >= self.cfg.bump_max_tries:
-            tried = f" ({self._bump_tries} shifted tries failed)" if self._bump_tries else ""
-            self.blocked = f"blocked: {why}{tried}; waiting for a different path"
+        if self.pose is None:
             return
         xy = np.array(self.pose[:2])
         if self._bump is None:
             side = -self.follower.side_of(xy) or 1
+        elif np.linalg.norm(xy - self._bump[0]) > self.cfg.bump_back_off_m + 1e-9:
+            # Past the last spot: the side that got it there goes first at the new one.
+            side, self._bump_tries = self._bump[1], 0
         else:
             side = -self._bump[1]
+        if self._bump_tries >= self.cfg.bump_max_tries:
+            tried = f" ({self._bump_tries} shifted tries failed)" if self._bump_tries else ""
+            self.blocked = f"blocked: {why}{tried}; waiting for a different path"
+            return
         self._bump_tries += 1
         self._bump = (xy, side, why)
         self._backing_left_m = self.cfg.bump_back_off_m
-        self.follower.shift(xy, self.cfg.bump_radius_m, side * self.cfg.bump_shift_m)
+        self.follower.shift(xy, self.cfg.bump_radius_m, side * self._bump_shift_now())
+
+    def _bump_shift_now(self):
+        """bump_shift_m for the first two tries at a spot (one each side), twice it for the
+        next two, and so on."""
+        return self.cfg.bump_shift_m * (1 + (self._bump_tries - 1) // 2)
 
     def _end_bump(self):
         self._bump, self._bump_tries, self._backing_left_m = None, 0, 0.0
@@ -450,7 +462,7 @@ class MotionController:
             return None
         toward = "left" if side > 0 else "right"
         decision = Decision(FOLLOWING, f"blocked ({why}): backing off, then "
-                            f"{self.cfg.bump_shift_m:.2f} m to the {toward} of the path (try "
+                            f"{self._bump_shift_now():.2f} m to the {toward} of the path (try "
                             f"{self._bump_tries} of {self.cfg.bump_max_tries})", moving=True)
         if self.cfg.robot == "drone":
             decision.command = "back %d" % max(TELLO_MIN_MOVE_CM, min(

@@ -338,7 +338,8 @@ class Conductor:
             self._goal_losses += 1
         else:
             self._goal_losses = 1
-        self._loss_distance = min(distance, self._loss_distance or math.inf)
+        self._loss_distance = (distance if self._loss_distance is None
+                               else min(distance, self._loss_distance))
 
     def _start_state(self, t, obs):
         cfg = self.config

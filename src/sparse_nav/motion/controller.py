@@ -349,17 +349,16 @@ class MotionController:
     def _blocked_by(self, why):
         """Something the map does not show stopped the robot on its path, most often a door jamb
         that a path through a narrow, thickly mapped door passes too closely. While tries are
-        left the robot backs off and aims bump_shift_m beside the path past that spot, away from
-        the side it strayed to first (a robot cutting a corner meets the jamb on the inside),
-        the other side next; then it stops (FAILED) until a path with another route arrives."""
+        left at that spot the robot backs off and aims beside the path past it, away from the
+        side it strayed to first (a robot cutting a corner meets the jamb on the inside), the
+        other side next, the shift growing (see MotionConfig); then it stops (FAILED) until a
+        path with another route arrives."""
         self._progress.clear()
-        if self._backing_left_m > 0 or self.blocked:
-            return
-        if self.pose is None:
+        if self._backing_left_m > 0 or self.blocked or self.pose is None:
             return
         xy = np.array(self.pose[:2])
         if self._bump is None:
-            side = -self.follower.side_of(xy) or 1
+            side = -self.follower.side_of(xy) or 1     # neither side stands out: left first
         elif np.linalg.norm(xy - self._bump[0]) > self.cfg.bump_back_off_m + 1e-9:
             # Past the last spot: the side that got it there goes first at the new one.
             side, self._bump_tries = self._bump[1], 0

@@ -332,6 +332,81 @@ def test_robot_inside_an_obstacle_recovers():
     assert kinds(actions) == [ActionKind.GOAL]
 
 
+def test_a_scan_ending_inside_an_obstacle_is_read_before_the_robot_recovers():
+    # mission_drone.test run: the initial scan ended with the drone on an obstacle cell; the
+    # recovery motion then looked like the scan still running, and the conductor recovered 253
+    # times without ever reading the scan's end.
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m.tick(start_requested=True)
+    m.tick(scan_running=True)
+    actions = m.tick(scan_running=False, map_ready=True, robot_in_obstacle=True)
+    assert kinds(actions) == [ActionKind.FIND_EXIT]
+    actions = m.tick()
+    assert kinds(actions) == [ActionKind.STOP, ActionKind.RECOVER_MOTION]
+    m.tick(scan_running=True)                       # the recovery motion
+    m.tick(scan_running=False, robot_in_obstacle=False)
+    assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.FIND_EXIT)
+    actions = m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    assert kinds(actions) == [ActionKind.GOAL]
+
+
+def test_recover_waits_for_its_motion_and_repeats_it_while_still_inside():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, recover_timeout_s=30.0))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    m.tick(robot_in_obstacle=True)
+    assert m.conductor.state == State.RECOVER
+    assert m.tick(scan_running=True) == []          # moving: the cell is judged where it ends
+    assert m.conductor.state == State.RECOVER
+    actions = m.tick(scan_running=False)            # ended still inside: again
+    assert kinds(actions) == [ActionKind.RECOVER_MOTION]
+    m.tick(dt=31.0)
+    assert m.conductor.phase == Phase.GAVE_UP
+    assert "inside an obstacle for more than 30 s" in m.conductor.reason
+
+
+def test_a_robot_on_a_cells_edge_does_not_recover_forever():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, recover_timeout_s=30.0,
+                                recover_clear_s=10.0))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    for _ in range(20):                             # in, out, in again 2 s later ...
+        m.tick(dt=2.0, robot_in_obstacle=True)
+        if m.conductor.phase == Phase.GAVE_UP:
+            break
+        m.tick(dt=0.5, robot_in_obstacle=False)
+    assert m.conductor.phase == Phase.GAVE_UP, m.conductor.history
+    assert m.t < 40.0
+    # Out for longer than recover_clear_s: a new episode with its own time.
+    m = Mission(ConductorConfig(wall_scan_enabled=False, recover_timeout_s=30.0,
+                                recover_clear_s=10.0))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    for i in range(4):
+        m.tick(dt=1.0, robot_in_obstacle=True)
+        assert m.conductor.state == State.RECOVER
+        m.tick(dt=1.0, robot_in_obstacle=False)
+        m.tick(dt=25.0, robot_xy=(0.5 * (i + 1), 0.0))  # out, and coming closer to the goal
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
+
+
+def test_a_loss_while_recovering_resumes_the_interrupted_goal():
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    m.tick(robot_in_obstacle=True)
+    assert m.conductor.state == State.RECOVER
+    m.tick(tracking_lost=True)
+    assert m.conductor.state == State.LOST
+    m.tick(tracking_lost=False, robot_in_obstacle=False)
+    m.tick()
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
+
+
 def test_parked_near_an_exit_inside_an_obstacle_passes_through_from_there():
     m = Mission(ConductorConfig(wall_scan_enabled=False, stall_timeout_s=30.0, exit_near_m=1.0))
     m.tick(start_requested=True)

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from sparse_nav.conductor.grid_queries import GridView, order_exits
+from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
 
 
 @pytest.fixture
@@ -29,6 +29,33 @@ def test_cells_and_obstacles(room):
     assert room.cell(2.5, 1.5) == -1 and not room.in_obstacle(2.5, 1.5)
     assert room.cell(-5.0, 0.0) is None
     assert room.free_cells_near(0.0, 0.0, 0.2) == 25
+
+
+def test_nearest_free_cell_is_known_free_and_within_reach(room):
+    # (-0.95, 0.45) lies in the west wall (column 0); the free cell next to it is column 1.
+    assert room.nearest_free(-0.95, 0.45, 0.5) == pytest.approx((-0.85, 0.45))
+    assert room.nearest_free(0.02, 0.03, 0.5) == pytest.approx((0.05, 0.05))  # its own cell
+    walled = GridView(np.full((10, 10), 100, dtype=np.int8), 0.1, (0.0, 0.0))
+    walled.cells[9, 9] = -1  # unknown is not free
+    assert walled.nearest_free(0.05, 0.05, 2.0) is None
+    walled.cells[0, 9] = 0  # 0.9 m east of (0.05, 0.05)
+    assert walled.nearest_free(0.05, 0.05, 0.5) is None
+    assert walled.nearest_free(0.05, 0.05, 1.0) == pytest.approx((0.95, 0.05))
+
+
+def test_steps_out_of_an_obstacle_face_the_nearest_free_cell_and_end_on_it(room):
+    # In the south wall (row 0) facing east: the free cell lies north, a quarter turn left.
+    steps = steps_out_of_obstacle(room, (0.55, -0.95, 0.0))
+    assert [s.ccw_deg for s in steps] == [90, 0] and steps[0].forward_m == 0.0
+    assert steps[1].forward_m == pytest.approx(0.2)  # 0.1 m to the cell + 0.1: the Tello's least
+    x, y, yaw = 0.55, -0.95, math.radians(steps[0].ccw_deg)
+    end = (x + steps[1].forward_m * math.cos(yaw), y + steps[1].forward_m * math.sin(yaw))
+    assert not room.in_obstacle(*end)
+    # Facing north-west: the same cell, turned the short way (right).
+    steps = steps_out_of_obstacle(room, (0.55, -0.95, math.radians(135.0)))
+    assert steps[0].ccw_deg == -45
+    walled = GridView(np.full((10, 10), 100, dtype=np.int8), 0.1, (0.0, 0.0))
+    assert steps_out_of_obstacle(walled, (0.5, 0.5, 0.0)) is None
 
 
 @pytest.fixture

@@ -1,9 +1,11 @@
 """What the conductor asks of the occupancy grid (ROS-free): free room along a bearing, the cell
-under the robot, and whether an exit candidate leads out of the room."""
+under the robot, the way out of an obstacle, and whether an exit candidate leads out of the room."""
 import dataclasses
 import math
 
 import numpy as np
+
+from sparse_nav.scanning import Step
 
 
 @dataclasses.dataclass
@@ -46,6 +48,22 @@ class GridView:
         window = self.cells[max(0, row - r):row + r + 1, max(0, col - r):col + r + 1]
         return int(np.count_nonzero(window == 0))
 
+    def nearest_free(self, x, y, max_m, occupied_at=50):
+        """Centre (x, y) of the known-free cell nearest to (x, y) within max_m, or None."""
+        r = int(math.ceil(max_m / self.resolution_m))
+        col = int(math.floor((x - self.origin_xy[0]) / self.resolution_m))
+        row = int(math.floor((y - self.origin_xy[1]) / self.resolution_m))
+        row0, col0 = max(0, row - r), max(0, col - r)
+        window = self.cells[row0:row + r + 1, col0:col + r + 1]
+        rows, cols = np.nonzero((window >= 0) & (window < occupied_at))
+        if rows.size == 0:
+            return None
+        cx = self.origin_xy[0] + (col0 + cols + 0.5) * self.resolution_m
+        cy = self.origin_xy[1] + (row0 + rows + 0.5) * self.resolution_m
+        d = np.hypot(cx - x, cy - y)
+        best = int(np.argmin(d))
+        return (float(cx[best]), float(cy[best])) if d[best] <= max_m else None
+
     def free_share_beyond(self, exit_xy, from_xy, near_m, far_m, occupied_at=50):
         """Share of the cells from near_m to far_m beyond exit_xy, on the line from from_xy
         through it, that the map knows to be free. The map's free space comes from rays to the
@@ -73,3 +91,18 @@ def order_exits(candidates, grid, from_xy, near_m, far_m, min_free_share):
     ordered = [c for c, ok in zip(candidates, leads_out) if ok] + \
         [c for c, ok in zip(candidates, leads_out) if not ok]
     return ordered, any(leads_out)
+
+
+def steps_out_of_obstacle(grid, pose, search_m=1.0, min_move_m=0.2):
+    """Steps that take a robot the map puts inside an obstacle to the nearest free cell: turn to
+    face it, then move one cell past its centre (at least min_move_m, the Tello's shortest move).
+    None when no free cell lies within search_m. A move that ended where it began (a sway) would
+    leave the robot in the same cell, and the conductor recovering from it again and again."""
+    x, y, yaw = pose
+    target = grid.nearest_free(x, y, search_m)
+    if target is None:
+        return None
+    bearing = math.atan2(target[1] - y, target[0] - x)
+    turn_deg = math.degrees(math.atan2(math.sin(bearing - yaw), math.cos(bearing - yaw)))
+    distance = max(min_move_m, math.hypot(target[0] - x, target[1] - y) + grid.resolution_m)
+    return [Step(ccw_deg=round(turn_deg)), Step(forward_m=distance)]

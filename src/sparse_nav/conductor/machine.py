@@ -111,6 +111,8 @@ class ConductorConfig:
     exit_near_m: float = 1.0             # stalled this close to the exit: pass through from there
     lost_timeout_s: float = 60.0         # tracking lost longer than this: gave up
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
+    recover_clear_s: float = 10.0        # back inside within this of getting out: the same
+                                         # episode, its time counts on (a robot on a cell's edge)
 
     def validate(self):
         for name in ("max_scan_rounds", "max_exit_attempts", "max_goal_failures",
@@ -118,8 +120,8 @@ class ConductorConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
-                     "lost_timeout_s", "recover_timeout_s", "left_room_margin_m",
-                     "inside_room_margin_m", "rejected_exit_radius_m",
+                     "lost_timeout_s", "recover_timeout_s", "recover_clear_s",
+                     "left_room_margin_m", "inside_room_margin_m", "rejected_exit_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -192,6 +194,7 @@ class Conductor:
         self._loss_distance = None  # the closest to the goal at those losses
         self._lost_since_s = None
         self._recover_since_s = None
+        self._recover_left_s = None  # when the robot's cell was last found free again
         self._scan_started = False
         self._scan_cut = False  # the running phase scan ended while tracking was lost
         self._scan_kind = None
@@ -277,7 +280,8 @@ class Conductor:
         cfg = self.config
         if obs.tracking_lost:
             if self.state != State.LOST:
-                self._resume_state = self.state
+                if self.state != State.RECOVER:  # RECOVER resumes the state it interrupted
+                    self._resume_state = self.state
                 self._lost_since_s = t
                 self._count_goal_loss()
                 if self.state == State.START and obs.scan_running:
@@ -311,19 +315,35 @@ class Conductor:
                 # that keeps losing tracking would scan forever); the phase's bounded rules decide.
                 self._scan_started = self._scan_cut = True
             return actions
-        if obs.map_ready and obs.robot_in_obstacle and not obs.scan_running:
-            if self.state != State.RECOVER:
-                self._resume_state = self.state
-                self._recover_since_s = t
-                self._set(t, State.RECOVER, self.phase, "the map puts the robot inside an obstacle")
-                return [Action(ActionKind.STOP), Action(ActionKind.RECOVER_MOTION)]
-            if t - self._recover_since_s > cfg.recover_timeout_s:
-                return self._give_up(t, f"inside an obstacle for more than {cfg.recover_timeout_s:g} s")
-            return []
+        recover_expired = (self._recover_since_s is not None
+                           and t - self._recover_since_s > cfg.recover_timeout_s)
         if self.state == State.RECOVER:
+            if obs.scan_running:
+                return []  # the recovery motion runs; the cell is judged where it ends
+            if obs.map_ready and obs.robot_in_obstacle:
+                if recover_expired:
+                    return self._give_up(t, f"inside an obstacle for more than "
+                                            f"{cfg.recover_timeout_s:g} s")
+                return [Action(ActionKind.RECOVER_MOTION)]
+            self._recover_left_s = t
             self._set(t, self._resume_state, self.phase, "the robot's cell is free again")
             if self._resume_state == State.GOAL and self.goal_xy is not None:
                 return [Action(ActionKind.GOAL, self.goal_xy)]
+            return None
+        # A phase scan that has just ended is read by the phase's rules first: a recovery motion
+        # started now would look to them like that scan still running, and so on without end.
+        scan_end_unread = self.state == State.START and self._scan_started
+        if obs.map_ready and obs.robot_in_obstacle and not obs.scan_running and not scan_end_unread:
+            relapse = (self._recover_left_s is not None
+                       and t - self._recover_left_s < cfg.recover_clear_s)
+            if not relapse:
+                self._recover_since_s = t
+            elif recover_expired:
+                return self._give_up(t, f"inside an obstacle for more than "
+                                        f"{cfg.recover_timeout_s:g} s")
+            self._resume_state = self.state
+            self._set(t, State.RECOVER, self.phase, "the map puts the robot inside an obstacle")
+            return [Action(ActionKind.STOP), Action(ActionKind.RECOVER_MOTION)]
         return None
 
     def _count_goal_loss(self):

@@ -17,7 +17,7 @@ from std_srvs.srv import Trigger, TriggerResponse
 
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, ScanRunner,
                                   ScanRunnerConfig)
-from sparse_nav.conductor.grid_queries import GridView, order_exits
+from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
 from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
@@ -260,7 +260,10 @@ class ConductorNode:
         elif action.kind == ActionKind.RECOVER_MOTION:
             self._stop_scan()
             self.scan_stop.clear()
-            steps = [Step(forward_m=0.2, ccw_deg=30.0), Step(forward_m=-0.2)]
+            grid = self.grid
+            steps = steps_out_of_obstacle(grid, pose) if grid is not None and pose else None
+            if steps is None:  # no free cell nearby: look around from a little aside
+                steps = [Step(forward_m=0.2, ccw_deg=30.0), Step(forward_m=-0.2)]
             self.scan_thread = threading.Thread(target=self._run_scan, args=(steps,), daemon=True)
             self.scan_thread.start()
 

@@ -25,18 +25,20 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "src"))
 
 from sparse_nav.exit_finder import find_exit  # noqa: E402
-from sparse_nav.scanning import initial_scan, to_velocity_segments  # noqa: E402
+from sparse_nav.scanning import (GROUND_SPEED_M_S, GROUND_TURN_RATE_RAD_S,  # noqa: E402
+                                 initial_scan, to_velocity_segments)
 from sparse_nav.sim import SimConfig, load_world  # noqa: E402
 from sparse_nav.sim.simulator import Simulator  # noqa: E402
 
 PAUSE_S = 0.5   # the conductor's pause after each step
 
 
-def scan_once(world_name, seed, hit_m):
+def scan_once(world_name, seed, hit_m, speed_m_s, turn_rate_rad_s):
     world = load_world(world_name)
     sim = Simulator(world, SimConfig(robot="ground", seed=seed))
     for step in initial_scan():
-        for v, w, duration in to_velocity_segments([step]):
+        for v, w, duration in to_velocity_segments([step], speed_m_s=speed_m_s,
+                                                    turn_rate_rad_s=turn_rate_rad_s):
             sim.set_cmd_vel(v, w)
             sim.step(duration)
         sim.set_cmd_vel(0.0, 0.0)
@@ -69,13 +71,17 @@ def main():
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--hit-m", type=float, default=1.0,
                         help="a best candidate this close to a true exit is a hit (m)")
+    parser.add_argument("--speed-m-s", type=float, default=GROUND_SPEED_M_S,
+                        help="driving speed (m/s; default %(default)s, the conductor's)")
+    parser.add_argument("--turn-rate-rad-s", type=float, default=GROUND_TURN_RATE_RAD_S,
+                        help="turn rate on the spot (rad/s; default %(default)s, the conductor's)")
     parser.add_argument("--json", default=os.path.join(HERE, "results", "ground_scan.json"),
                         help="where the rows and the summary go (default: %(default)s)")
     args = parser.parse_args()
     rows = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         start = time.time()
-        row = scan_once(args.world, seed, args.hit_m)
+        row = scan_once(args.world, seed, args.hit_m, args.speed_m_s, args.turn_rate_rad_s)
         row["wall_s"] = round(time.time() - start, 1)
         rows.append(row)
         print(json.dumps(row), flush=True)

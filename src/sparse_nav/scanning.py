@@ -8,6 +8,13 @@ baseline it needs to initialise and to keep triangulating while the view turns.
 import dataclasses
 import math
 
+# The ground robot's scan speeds. 1 rad/s keeps well under the turn rate at which monocular
+# tracking fails (the simulator's slam_max_turn_rate_rad_s, 1.75) and took the initial scan from
+# 431 to 290 sim-s with the exit found as often (bench/bench_ground_scan.py, one_room seeds 0-9:
+# 9 of 10 at 1 rad/s, 8 of 10 at 0.5 rad/s).
+GROUND_SPEED_M_S = 0.2
+GROUND_TURN_RATE_RAD_S = 1.0
+
 
 @dataclasses.dataclass(frozen=True)
 class Step:
@@ -179,7 +186,8 @@ def to_tello_commands(steps, min_move_cm=20, max_move_cm=500):
     return commands
 
 
-def to_velocity_segments(steps, speed_m_s=0.2, turn_rate_rad_s=0.5, side_face_deg=90.0):
+def to_velocity_segments(steps, speed_m_s=GROUND_SPEED_M_S, turn_rate_rad_s=GROUND_TURN_RATE_RAD_S,
+                         side_face_deg=90.0):
     """(linear_m_s, angular_rad_s, duration_s) segments for a unicycle executing Steps.
 
     A unicycle cannot move sideways: a sideways step turns on the spot to face the side by
@@ -189,7 +197,7 @@ def to_velocity_segments(steps, speed_m_s=0.2, turn_rate_rad_s=0.5, side_face_de
     it ~5 cm sideways for 0.3 m and 20 deg, and the points seen through a door then came out as
     streaks along the line of sight (bench/bench_ground_scan.py, one_room, seeds 0-9: the exit
     ranked first after 1 of 10 initial scans with arcs, 7 of 10 with this; median points mapped
-    beyond the exit's wall 87 -> 159; the scan takes 431 s of sim time instead of 163 s).
+    beyond the exit's wall 87 -> 159; the scan took 431 s of sim time instead of 163 s at 0.5 rad/s).
     """
     if not 0.0 < side_face_deg <= 90.0:
         raise ValueError(f"side_face_deg must be in (0, 90], got {side_face_deg}")

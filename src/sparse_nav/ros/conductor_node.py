@@ -22,8 +22,8 @@ from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
 from sparse_nav.ros.robot_io import StepExecutor, TelloClient
-from sparse_nav.scanning import (InitialScanConfig, Step, WallScanConfig, initial_scan,
-                                 random_scan, sway, wall_scan)
+from sparse_nav.scanning import (GROUND_SPEED_M_S, GROUND_TURN_RATE_RAD_S, InitialScanConfig, Step,
+                                 WallScanConfig, initial_scan, random_scan, sway, wall_scan)
 from sparse_nav.srv import FindExit
 
 # Navigator action states as the conductor names them.
@@ -74,7 +74,15 @@ class ConductorNode:
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         tello = TelloClient() if self.robot == "drone" else None
         self.tello = tello
-        self.executor = StepExecutor(self.robot, tello=tello)
+        ground_speed = float(rospy.get_param("~ground_scan_speed_m_s", GROUND_SPEED_M_S))
+        ground_turn_rate = float(rospy.get_param("~ground_scan_turn_rate_rad_s",
+                                                 GROUND_TURN_RATE_RAD_S))
+        for name, value in (("ground_scan_speed_m_s", ground_speed),
+                            ("ground_scan_turn_rate_rad_s", ground_turn_rate)):
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be finite and > 0, got {value}")
+        self.executor = StepExecutor(self.robot, tello=tello, ground_speed_m_s=ground_speed,
+                                     ground_turn_rate_rad_s=ground_turn_rate)
         self.navigator = actionlib.SimpleActionClient(action_name, MoveBaseAction)
         self.state_pub = rospy.Publisher("conductor/state", ConductorState, queue_size=5, latch=True)
         self.diag_pub = rospy.Publisher("/diagnostics", DiagnosticArray, queue_size=5)

@@ -5,7 +5,8 @@ import rospy
 from geometry_msgs.msg import Twist
 from std_msgs.msg import String
 
-from sparse_nav.scanning import to_tello_commands, to_velocity_segments
+from sparse_nav.scanning import (GROUND_SPEED_M_S, GROUND_TURN_RATE_RAD_S, to_tello_commands,
+                                 to_velocity_segments)
 
 TELLO_SPEED_CM_S = 100  # the sim's and the SDK's top speed; retries go slower from here
 TELLO_MIN_SPEED_CM_S = 10
@@ -66,7 +67,8 @@ class TelloClient:
 class StepExecutor:
     """Executes one scanning.Step at a given speed factor on the drone or the ground robot."""
 
-    def __init__(self, robot, tello=None, ground_speed_m_s=0.2, ground_turn_rate_rad_s=0.5,
+    def __init__(self, robot, tello=None, ground_speed_m_s=GROUND_SPEED_M_S,
+                 ground_turn_rate_rad_s=GROUND_TURN_RATE_RAD_S,
                  rate_hz=20.0, on_wait=None):
         if robot not in ("drone", "ground"):
             raise ValueError(f"robot must be 'drone' or 'ground', got {robot!r}")

@@ -4,9 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from sparse_nav.scanning import (InitialScanConfig, Step, WallScanConfig, circular_scan,
-                                 initial_scan, random_scan, sway, to_tello_commands,
+from sparse_nav.scanning import (GROUND_TURN_RATE_RAD_S, InitialScanConfig, Step, WallScanConfig,
+                                 circular_scan, initial_scan, random_scan, sway, to_tello_commands,
                                  to_velocity_segments, wall_scan)
+from sparse_nav.sim import SimConfig
 
 
 def test_initial_scan_turns_a_full_circle_and_returns_each_iteration():
@@ -112,3 +113,14 @@ def test_sway_is_the_initial_scan_iteration_without_its_turn():
     assert steps == initial_scan()[:6]
     assert sum(s.forward_m for s in steps) == pytest.approx(0.0)
     assert sum(s.ccw_deg for s in steps) == pytest.approx(0.0)
+
+
+def test_default_ground_scan_turns_within_what_the_robot_and_tracking_allow():
+    # Faster than the simulated ground robot turns, the scan would drift from its steps; faster
+    # than the simulated tracking survives, every turn would lose it.
+    limits = SimConfig(robot="ground")
+    segments = to_velocity_segments(initial_scan())
+    fastest = max(abs(w) for _, w, _ in segments)
+    assert fastest == pytest.approx(GROUND_TURN_RATE_RAD_S)
+    assert fastest < min(limits.ground_max_angular_rad_s, limits.slam_max_turn_rate_rad_s)
+    assert max(abs(v) for v, _, _ in segments) <= limits.ground_max_linear_m_s

@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 #include "sparse_nav/core/types.h"
@@ -38,15 +37,34 @@ class SpatialHash3
 public:
   SpatialHash3(double cell, const PointList& points) : inv_(1.0 / cell)
   {
-    std::unordered_map<CellKey, std::uint32_t, CellKeyHash> ids;
-    ids.reserve(points.size());
+    // Cell ids in open addressing (linear probing, at most half full): std::unordered_map's
+    // bucket and node lookups were most of the density filter's time, 27 of them per cell.
+    std::size_t capacity = 16;
+    int log2_capacity = 4;
+    while (capacity < 2 * points.size())
+    {
+      capacity *= 2;
+      ++log2_capacity;
+    }
+    slots_.assign(capacity, kEmpty);
+    shift_ = 64 - log2_capacity;
     std::vector<std::uint32_t> cell_of(points.size());
     for (std::size_t i = 0; i < points.size(); ++i)
     {
-      auto it = ids.emplace(key(points[i]), static_cast<std::uint32_t>(ids.size())).first;
-      cell_of[i] = it->second;
+      const CellKey k = key(points[i]);
+      std::size_t s = slotOf(k);
+      while (slots_[s] != kEmpty && !(keys_[slots_[s]] == k))
+      {
+        s = (s + 1) & (slots_.size() - 1);
+      }
+      if (slots_[s] == kEmpty)
+      {
+        slots_[s] = static_cast<std::uint32_t>(keys_.size());
+        keys_.push_back(k);
+      }
+      cell_of[i] = slots_[s];
     }
-    start_.assign(ids.size() + 1, 0);
+    start_.assign(keys_.size() + 1, 0);
     for (std::uint32_t c : cell_of)
     {
       ++start_[c + 1];
@@ -61,12 +79,6 @@ public:
     {
       items_[fill[cell_of[i]]++] = static_cast<std::uint32_t>(i);
     }
-    keys_.resize(ids.size());
-    for (const auto& kv : ids)
-    {
-      keys_[kv.second] = kv.first;
-    }
-    ids_.swap(ids);
   }
 
   CellKey key(const Eigen::Vector3f& p) const
@@ -141,8 +153,8 @@ private:
       {
         for (int ix : kOrder)
         {
-          auto it = ids_.find(CellKey{ c.x + ix, c.y + iy, c.z + iz });
-          if (it != ids_.end() && !visit(it->second))
+          const std::uint32_t id = cellId(CellKey{ c.x + ix, c.y + iy, c.z + iz });
+          if (id != kEmpty && !visit(id))
           {
             return;
           }
@@ -151,8 +163,29 @@ private:
     }
   }
 
+  /// The slot a key's probe starts at: the top bits of a Fibonacci-scrambled CellKeyHash.
+  std::size_t slotOf(const CellKey& k) const
+  {
+    return static_cast<std::size_t>((static_cast<std::uint64_t>(CellKeyHash()(k)) * 0x9E3779B97F4A7C15ULL) >> shift_);
+  }
+
+  /// The id of the cell with key k, or kEmpty when no point lies in it.
+  std::uint32_t cellId(const CellKey& k) const
+  {
+    for (std::size_t s = slotOf(k); slots_[s] != kEmpty; s = (s + 1) & (slots_.size() - 1))
+    {
+      if (keys_[slots_[s]] == k)
+      {
+        return slots_[s];
+      }
+    }
+    return kEmpty;
+  }
+
+  static constexpr std::uint32_t kEmpty = 0xFFFFFFFFu;
   double inv_;
-  std::unordered_map<CellKey, std::uint32_t, CellKeyHash> ids_;
+  int shift_ = 0;
+  std::vector<std::uint32_t> slots_;  // cell id per slot, or kEmpty
   std::vector<std::uint32_t> start_;
   std::vector<std::uint32_t> items_;
   std::vector<CellKey> keys_;  // per cell id

@@ -173,6 +173,48 @@ TEST(DensityFilter, RadiusOutlierKeepsExactlyWhatPclKeeps)
   }
 }
 
+TEST(DensityFilter, RadiusOutlierMatchesPclOnClustersSpreadOverThousandsOfMetres)
+{
+  // Small clusters, some straddling cell boundaries, at far and negative coordinates: tens of
+  // thousands of occupied cells, so the filter's cell lookups probe past other cells' keys.
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> centre(-5000.0f, 5000.0f);
+  std::uniform_real_distribution<float> offset(-0.1f, 0.1f);
+  std::uniform_int_distribution<int> size(1, 9);
+  PointList pts;
+  for (int c = 0; c < 6000; ++c)
+  {
+    const Eigen::Vector3f at(centre(rng), centre(rng), 0.3f * std::round(centre(rng) / 1000.0f));
+    for (int n = size(rng); n > 0; --n)
+    {
+      pts.push_back(at + Eigen::Vector3f(offset(rng), offset(rng), offset(rng)));
+    }
+  }
+  const DensityFilterConfig cfg;
+  const PointList ours = DensityFilter(cfg).apply(pts);
+
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  for (const auto& p : pts)
+  {
+    cloud->points.emplace_back(p.x(), p.y(), p.z());
+  }
+  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
+  cloud->height = 1;
+  pcl::RadiusOutlierRemoval<pcl::PointXYZ> ror;
+  ror.setInputCloud(cloud);
+  ror.setRadiusSearch(cfg.radius_m);
+  ror.setMinNeighborsInRadius(cfg.min_neighbors);
+  pcl::PointCloud<pcl::PointXYZ> kept;
+  ror.filter(kept);
+  ASSERT_EQ(ours.size(), kept.size());
+  EXPECT_GT(ours.size(), pts.size() / 3);  // clusters of 6 or more points stay, smaller ones go
+  EXPECT_LT(ours.size(), 3 * pts.size() / 4);
+  for (std::size_t i = 0; i < ours.size(); ++i)
+  {
+    EXPECT_EQ(ours[i], Eigen::Vector3f(kept.points[i].x, kept.points[i].y, kept.points[i].z)) << i;
+  }
+}
+
 TEST(DensityFilter, IpclOnAHundredThousandPointsKeepsClustersAndDropsStrays)
 {
   // Sparse background, a dense cluster, and strays far from everything: at this size the filter

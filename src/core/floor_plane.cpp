@@ -17,6 +17,7 @@
 #include <pcl/sample_consensus/model_types.h>
 #include <pcl/segmentation/sac_segmentation.h>
 
+#include "kth_smallest.h"
 #include "spatial_hash.h"
 
 
@@ -63,9 +64,7 @@ Envelope lowerEnvelope(const std::vector<Eigen::Vector3d>& pts, const Eigen::Vec
     heights[i] = n.dot(pts[i]);
   }
   const std::size_t k = std::min(pts.size() - 1, static_cast<std::size_t>(quantile * static_cast<double>(pts.size())));
-  std::vector<double> sorted = heights;
-  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k), sorted.end());
-  e.low = sorted[k];
+  e.low = kthSmallest(heights, k);
   for (double h : heights)
   {
     e.count += (h >= e.low && h <= e.low + width) ? 1 : 0;

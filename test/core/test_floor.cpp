@@ -1,11 +1,14 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <stdexcept>
+#include <vector>
 
 #include "sparse_nav/core/floor_plane.h"
 #include "synthetic.h"
+#include "../../src/core/kth_smallest.h"
 
 using sparse_nav::FloorDetector;
 using sparse_nav::FloorDetectorConfig;
@@ -28,6 +31,36 @@ PointList tiltedRoomYDown(double tilt_deg, Eigen::Isometry3d* room_to_slam = nul
   return sparse_nav::transformPoints(sparse_nav::test::makeRoom(), t);
 }
 }  // namespace
+
+TEST(KthSmallest, AgreesWithNthElementInEveryOrderAndWithRepeats)
+{
+  std::mt19937 rng(9);
+  std::uniform_int_distribution<int> coarse(0, 40);  // many repeated values
+  std::normal_distribution<double> fine(0.0, 1.0);
+  std::vector<std::vector<double>> inputs;
+  for (std::size_t n : { 1u, 2u, 7u, 1000u, 10007u })
+  {
+    std::vector<double> repeats(n), spread(n);
+    for (std::size_t i = 0; i < n; ++i)
+    {
+      repeats[i] = coarse(rng) * 0.25;
+      spread[i] = fine(rng);
+    }
+    std::vector<double> ascending = spread, descending = spread;
+    std::sort(ascending.begin(), ascending.end());
+    std::sort(descending.rbegin(), descending.rend());  // every value replaces the heap's top
+    inputs.insert(inputs.end(), { repeats, spread, ascending, descending });
+  }
+  for (const auto& values : inputs)
+  {
+    for (std::size_t k : { std::size_t{ 0 }, values.size() / 100, values.size() / 3, values.size() - 1 })
+    {
+      std::vector<double> sorted = values;
+      std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k), sorted.end());
+      EXPECT_EQ(sparse_nav::kthSmallest(values, k), sorted[k]) << "n " << values.size() << " k " << k;
+    }
+  }
+}
 
 TEST(FloorDetector, FindsTheFloorForTiltsUpTo15Degrees)
 {

@@ -86,6 +86,36 @@ void sortUnique(std::vector<GridBuilder::Ray>& rays)
   }
 }
 
+/// Sorts (y, x) cells and drops repeats. update() keeps cell indices within +-(1e9 + 1), so the
+/// offsets from the minima fit 32 bits each and one 64-bit key per cell, radix-sorted (boost
+/// spreadsort), orders them as the pairs do: std::sort of ~45k pairs took ~1.5 ms per full rebuild.
+void sortUniqueCells(std::vector<std::pair<std::int64_t, std::int64_t>>& cells)
+{
+  if (cells.empty())
+  {
+    return;
+  }
+  std::int64_t min_y = cells.front().first, min_x = cells.front().second;
+  for (const auto& c : cells)
+  {
+    min_y = std::min(min_y, c.first);
+    min_x = std::min(min_x, c.second);
+  }
+  std::vector<std::uint64_t> keys;
+  keys.reserve(cells.size());
+  for (const auto& c : cells)
+  {
+    keys.push_back(static_cast<std::uint64_t>(c.first - min_y) << 32 | static_cast<std::uint64_t>(c.second - min_x));
+  }
+  boost::sort::spreadsort::integer_sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  cells.resize(keys.size());
+  for (std::size_t i = 0; i < keys.size(); ++i)
+  {
+    cells[i] = { static_cast<std::int64_t>(keys[i] >> 32) + min_y, static_cast<std::int64_t>(keys[i] & 0xffffffffu) + min_x };
+  }
+}
+
 cv::Point canonicalA(const cv::Point& a, const cv::Point& b)
 {
   return (a.x < b.x || (a.x == b.x && a.y < b.y)) ? a : b;
@@ -167,8 +197,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     cells.emplace_back(static_cast<std::int64_t>(std::floor(p.y() / res)),
                        static_cast<std::int64_t>(std::floor(p.x() / res)));
   }
-  std::sort(cells.begin(), cells.end());
-  cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+  sortUniqueCells(cells);
 
   std::vector<Ray> new_rays;
   new_rays.reserve(rays.size());

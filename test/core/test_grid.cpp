@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <set>
 #include <tuple>
@@ -372,6 +374,46 @@ TEST(GridBuilder, RepeatedRaysCountOnceNearByOrKilometresApart)
   EXPECT_EQ(valueAt(spread.grid(), 0.52, 0.02), OccupancyGrid::kFree);
   EXPECT_EQ(valueAt(spread.grid(), 4000.52, 0.02), OccupancyGrid::kFree);
   EXPECT_EQ(valueAt(spread.grid(), 2000.0, 0.02), OccupancyGrid::kUnknown);
+}
+
+TEST(GridBuilder, RepeatedObstacleCellsCountOnceOverTheWholeAcceptedRange)
+{
+  // Cells from -1e9 to 1e9 along both axes (update() drops points beyond 1e9 cells), each point
+  // given twice and once more elsewhere in its cell: only distinct cells count. So wide a cloud is
+  // refused as a grid, but the cells are counted and the extent reported first.
+  const double res = GridBuilderConfig().resolution_m;
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> coordinate(-1e9 * res, 1e9 * res);
+  std::uniform_real_distribution<double> within(0.001, 0.999);
+  PointList2D obstacles = { { -1e9 * res, -1e9 * res }, { 1e9 * res - 0.5 * res, 1e9 * res - 0.5 * res } };
+  std::set<std::pair<std::int64_t, std::int64_t>> distinct;
+  for (int i = 0; i < 5000; ++i)
+  {
+    const Eigen::Vector2d p(coordinate(rng), i % 2 ? coordinate(rng) : std::round(coordinate(rng) / 1e7));
+    obstacles.push_back(p);
+    obstacles.push_back(p);
+    const Eigen::Vector2d corner(std::floor(p.x() / res) * res, std::floor(p.y() / res) * res);
+    obstacles.push_back(corner + res * Eigen::Vector2d(within(rng), within(rng)));
+  }
+  for (const auto& p : obstacles)
+  {
+    distinct.emplace(static_cast<std::int64_t>(std::floor(p.y() / res)), static_cast<std::int64_t>(std::floor(p.x() / res)));
+  }
+  std::int64_t min_x = distinct.begin()->second, max_x = min_x;
+  for (const auto& c : distinct)
+  {
+    min_x = std::min(min_x, c.second);
+    max_x = std::max(max_x, c.second);
+  }
+  const double span_y = static_cast<double>(distinct.rbegin()->first - distinct.begin()->first + 1) * res;
+  char span[100];
+  std::snprintf(span, sizeof(span), "spans %.0f x %.0f m", static_cast<double>(max_x - min_x + 1) * res, span_y);
+  GridBuilder builder;
+  const GridUpdate u = builder.update(obstacles, {});
+  EXPECT_FALSE(u.ok);
+  EXPECT_NE(u.status.find("max_cells"), std::string::npos);
+  EXPECT_EQ(u.n_obstacle_cells, distinct.size());
+  EXPECT_NE(u.status.find(span), std::string::npos) << u.status << " lacks " << span;
 }
 
 TEST(GridBuilder, EmptyInputGivesAnEmptyGridWithAStatus)

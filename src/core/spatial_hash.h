@@ -52,11 +52,7 @@ public:
     for (std::size_t i = 0; i < points.size(); ++i)
     {
       const CellKey k = key(points[i]);
-      std::size_t s = slotOf(k);
-      while (slots_[s] != kEmpty && !(keys_[slots_[s]] == k))
-      {
-        s = (s + 1) & (slots_.size() - 1);
-      }
+      const std::size_t s = findSlot(k);
       if (slots_[s] == kEmpty)
       {
         slots_[s] = static_cast<std::uint32_t>(keys_.size());
@@ -169,17 +165,21 @@ private:
     return static_cast<std::size_t>((static_cast<std::uint64_t>(CellKeyHash()(k)) * 0x9E3779B97F4A7C15ULL) >> shift_);
   }
 
+  /// The slot holding key k, or the empty slot where its probe ends (where k would go).
+  std::size_t findSlot(const CellKey& k) const
+  {
+    std::size_t s = slotOf(k);
+    while (slots_[s] != kEmpty && !(keys_[slots_[s]] == k))
+    {
+      s = (s + 1) & (slots_.size() - 1);
+    }
+    return s;
+  }
+
   /// The id of the cell with key k, or kEmpty when no point lies in it.
   std::uint32_t cellId(const CellKey& k) const
   {
-    for (std::size_t s = slotOf(k); slots_[s] != kEmpty; s = (s + 1) & (slots_.size() - 1))
-    {
-      if (keys_[slots_[s]] == k)
-      {
-        return slots_[s];
-      }
-    }
-    return kEmpty;
+    return slots_[findSlot(k)];
   }
 
   static constexpr std::uint32_t kEmpty = 0xFFFFFFFFu;

@@ -138,6 +138,33 @@ TEST(DensityFilter, RadiusOutlierMatchesIpclOneRound)
   EXPECT_EQ(ror.size(), n_dense - 4);
 }
 
+namespace
+{
+// The points PCL's RadiusOutlierRemoval keeps at the filter's radius and neighbour count.
+PointList pclRadiusOutlierKept(const PointList& pts, const DensityFilterConfig& cfg)
+{
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  for (const auto& p : pts)
+  {
+    cloud->points.emplace_back(p.x(), p.y(), p.z());
+  }
+  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
+  cloud->height = 1;
+  pcl::RadiusOutlierRemoval<pcl::PointXYZ> ror;
+  ror.setInputCloud(cloud);
+  ror.setRadiusSearch(cfg.radius_m);
+  ror.setMinNeighborsInRadius(cfg.min_neighbors);
+  pcl::PointCloud<pcl::PointXYZ> kept;
+  ror.filter(kept);
+  PointList out;
+  for (const auto& p : kept.points)
+  {
+    out.emplace_back(p.x, p.y, p.z);
+  }
+  return out;
+}
+}  // namespace
+
 TEST(DensityFilter, RadiusOutlierKeepsExactlyWhatPclKeeps)
 {
   // A noisy room plus scattered outliers, filtered at the nodelet's defaults (0.3 m, 5 neighbours).
@@ -152,24 +179,12 @@ TEST(DensityFilter, RadiusOutlierKeepsExactlyWhatPclKeeps)
   ASSERT_EQ(cfg.method, DensityMethod::kRadiusOutlier);
   const PointList ours = DensityFilter(cfg).apply(pts);
 
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  for (const auto& p : pts)
-  {
-    cloud->points.emplace_back(p.x(), p.y(), p.z());
-  }
-  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
-  cloud->height = 1;
-  pcl::RadiusOutlierRemoval<pcl::PointXYZ> ror;
-  ror.setInputCloud(cloud);
-  ror.setRadiusSearch(cfg.radius_m);
-  ror.setMinNeighborsInRadius(cfg.min_neighbors);
-  pcl::PointCloud<pcl::PointXYZ> kept;
-  ror.filter(kept);
+  const PointList kept = pclRadiusOutlierKept(pts, cfg);
   ASSERT_EQ(ours.size(), kept.size());
   EXPECT_LT(ours.size(), pts.size());  // some outliers went
   for (std::size_t i = 0; i < ours.size(); ++i)
   {
-    EXPECT_EQ(ours[i], Eigen::Vector3f(kept.points[i].x, kept.points[i].y, kept.points[i].z)) << i;
+    EXPECT_EQ(ours[i], kept[i]) << i;
   }
 }
 
@@ -193,25 +208,13 @@ TEST(DensityFilter, RadiusOutlierMatchesPclOnClustersSpreadOverThousandsOfMetres
   const DensityFilterConfig cfg;
   const PointList ours = DensityFilter(cfg).apply(pts);
 
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  for (const auto& p : pts)
-  {
-    cloud->points.emplace_back(p.x(), p.y(), p.z());
-  }
-  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
-  cloud->height = 1;
-  pcl::RadiusOutlierRemoval<pcl::PointXYZ> ror;
-  ror.setInputCloud(cloud);
-  ror.setRadiusSearch(cfg.radius_m);
-  ror.setMinNeighborsInRadius(cfg.min_neighbors);
-  pcl::PointCloud<pcl::PointXYZ> kept;
-  ror.filter(kept);
+  const PointList kept = pclRadiusOutlierKept(pts, cfg);
   ASSERT_EQ(ours.size(), kept.size());
   EXPECT_GT(ours.size(), pts.size() / 3);  // clusters of 6 or more points stay, smaller ones go
   EXPECT_LT(ours.size(), 3 * pts.size() / 4);
   for (std::size_t i = 0; i < ours.size(); ++i)
   {
-    EXPECT_EQ(ours[i], Eigen::Vector3f(kept.points[i].x, kept.points[i].y, kept.points[i].z)) << i;
+    EXPECT_EQ(ours[i], kept[i]) << i;
   }
 }
 

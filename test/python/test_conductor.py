@@ -53,7 +53,8 @@ def test_the_whole_mission_in_order():
     beyond = actions[0].payload  # 1.5 m further along start -> exit
     assert beyond == pytest.approx((3.9, 5.2))
     m.tick(navigator_state="following")
-    assert kinds(m.tick(robot_xy=(3.8, 5.1))) == [ActionKind.STOP]  # within tolerance
+    # Within tolerance: the navigator's goal is cancelled, so no path outlives the mission.
+    assert kinds(m.tick(robot_xy=(3.8, 5.1))) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
     assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
     phases = [tr.phase for tr in m.conductor.history]
     assert phases == [Phase.INITIAL_SCAN, Phase.WALL_SCAN, Phase.FIND_EXIT, Phase.GO_TO_EXIT,
@@ -211,7 +212,8 @@ def test_passing_through_a_false_exit_and_staying_in_the_room_tries_the_next_can
     m.tick(navigator_state="following")
     m.tick(robot_xy=(5.9, 0.0), navigator_state="reached")
     m.tick(navigator_state="following")
-    assert kinds(m.tick(robot_xy=(7.4, 0.0), navigator_state="reached")) == [ActionKind.STOP]
+    actions = m.tick(robot_xy=(7.4, 0.0), navigator_state="reached")
+    assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
     assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
 
 

@@ -4,7 +4,8 @@
 The test node stands in for the navigator (a MoveBase action server that reports each goal
 reached) and the exit finder (a FindExit service answering a fixed exit), so the conductor's own
 behaviour is what is checked: scans with takeoff, LOST on a forced SLAM loss and back, the exit
-request, the goal to the exit, the pass-through goal beyond it, done, and landing.
+request, the goal to the exit, the pass-through goal beyond it, done, and landing only once the
+motion layer (also a stand-in: it reports "following" until told otherwise) has stopped.
 """
 import threading
 import unittest
@@ -17,7 +18,7 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseResult
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from sparse_nav.msg import ConductorState, ExitCandidates
+from sparse_nav.msg import ConductorState, ExitCandidates, MotionStatus
 from sparse_nav.srv import FindExit, FindExitResponse
 
 EXIT = (2.5, 3.0)  # map frame; any reachable-looking point will do for the stand-ins
@@ -28,12 +29,13 @@ class ConductorNodeTest(unittest.TestCase):
         self.limit_s = float(rospy.get_param("~sim_time_limit_s"))
         self.lock = threading.Lock()
         self.states = []
-        self.commands = []
+        self.commands = []   # (sim time s, command)
         self.goals = []
         self.exit_calls = 0
         rospy.Subscriber("conductor/state", ConductorState, self._on_state, queue_size=50)
         rospy.Subscriber("tello/command", String, self._on_command, queue_size=200)
         rospy.Service("exit_finder/find_exit", FindExit, self._find_exit)
+        self.motion_pub = rospy.Publisher("motion/status", MotionStatus, queue_size=5, latch=True)
         self.server = actionlib.SimpleActionServer("move_base", MoveBaseAction,
                                                    execute_cb=self._navigate, auto_start=False)
         self.server.start()
@@ -44,7 +46,7 @@ class ConductorNodeTest(unittest.TestCase):
 
     def _on_command(self, msg):
         with self.lock:
-            self.commands.append(msg.data)
+            self.commands.append((rospy.Time.now().to_sec(), msg.data))
 
     def _find_exit(self, request):
         with self.lock:
@@ -59,6 +61,7 @@ class ConductorNodeTest(unittest.TestCase):
         with self.lock:
             p = goal.target_pose.pose.position
             self.goals.append((goal.target_pose.header.frame_id, p.x, p.y))
+        self._motion(MotionStatus.FOLLOWING)
         end = rospy.Time.now() + rospy.Duration(3.0)
         while rospy.Time.now() < end and not rospy.is_shutdown():
             if self.server.is_preempt_requested():
@@ -66,6 +69,12 @@ class ConductorNodeTest(unittest.TestCase):
                 return
             rospy.sleep(0.1)
         self.server.set_succeeded(MoveBaseResult())
+
+    def _motion(self, state):
+        msg = MotionStatus(state=state, reason="stand-in", distance_to_goal_m=float("nan"),
+                           heading_error_deg=float("nan"))
+        msg.header.stamp = rospy.Time.now()
+        self.motion_pub.publish(msg)
 
     def _phase(self):
         with self.lock:
@@ -80,10 +89,15 @@ class ConductorNodeTest(unittest.TestCase):
         while (self._phase() not in ("done", "gave_up") and not rospy.is_shutdown()
                and rospy.Time.now().to_sec() < self.limit_s):
             rospy.sleep(0.5)
-        rospy.sleep(5.0)  # the landing command follows the final state
+        # The motion layer still follows its last path for a moment after the final state.
+        rospy.sleep(1.5)
+        motion_stopped_s = rospy.Time.now().to_sec()
+        self._motion(MotionStatus.IDLE)
+        rospy.sleep(5.0)  # the landing command follows
         with self.lock:
             states = list(self.states)
-            commands = list(self.commands)
+            landed_s = [t for t, c in self.commands if c == "land"]
+            commands = [c for _, c in self.commands]
             goals = list(self.goals)
         phases = [s.phase for s in states]
         trail = [(s.state, s.phase, s.reason) for s in states]
@@ -97,6 +111,9 @@ class ConductorNodeTest(unittest.TestCase):
         self.assertTrue(all(s.reason for s in states), "every state carries its reason")
         self.assertEqual(commands[:2], ["command", "takeoff"], "the drone takes off first")
         self.assertEqual(commands[-1], "land", "and lands at the end")
+        self.assertEqual(len(landed_s), 1, "once")
+        self.assertGreaterEqual(landed_s[0], motion_stopped_s,
+                                "after the motion layer stopped sending commands")
         self.assertTrue(any(c.startswith("speed") for c in commands))
         self.assertGreater(sum(1 for c in commands if c.split()[0] in ("cw", "ccw")), 12,
                            "the scans turn the drone")

@@ -469,7 +469,8 @@ class Conductor:
                     f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the room outline: not an exit")
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit" if self.phase ==
                       Phase.PASS_THROUGH else "back at the start")
-            return [Action(ActionKind.STOP)]
+            # Within tolerance the navigator may still hold the goal and publish its path.
+            return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         failure = (f"navigator: {obs.navigator_state}" if obs.navigator_state in _FAILED_NAVIGATION
                    else "motion failed" if obs.motion_failed
                    else f"no progress for {cfg.stall_timeout_s:g} s" if stalled else None)

@@ -69,6 +69,9 @@ class ConductorNode:
         self.keepalive_s = float(rospy.get_param("~drone_keepalive_s", 8.0))
         self.relocalise_turn_deg = float(rospy.get_param("~relocalise_turn_deg", 60.0))
         self.landed = False
+        self.motion_moving = False
+        self.final_since_s = None
+        self.land_wait_s = float(rospy.get_param("~drone_land_wait_s", 3.0))
 
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(30.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
@@ -81,6 +84,8 @@ class ConductorNode:
                             ("ground_scan_turn_rate_rad_s", ground_turn_rate)):
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
+        if not (math.isfinite(self.land_wait_s) and self.land_wait_s >= 0):
+            raise ValueError(f"drone_land_wait_s must be finite and >= 0, got {self.land_wait_s}")
         self.executor = StepExecutor(self.robot, tello=tello, ground_speed_m_s=ground_speed,
                                      ground_turn_rate_rad_s=ground_turn_rate)
         self.navigator = actionlib.SimpleActionClient(action_name, MoveBaseAction)
@@ -109,6 +114,7 @@ class ConductorNode:
     def _on_motion_status(self, msg):
         with self.lock:
             self.obs.motion_failed = msg.state == MotionStatus.FAILED
+            self.motion_moving = msg.state in (MotionStatus.FOLLOWING, MotionStatus.WALL_SEEKING)
 
     def _on_map(self, msg):
         if msg.info.resolution <= 0 or len(msg.data) != msg.info.width * msg.info.height:
@@ -305,6 +311,15 @@ class ConductorNode:
         if self.scan_thread is not None and self.scan_thread.is_alive():
             return
         if self.conductor.phase.final:
+            now = rospy.Time.now().to_sec()
+            if self.final_since_s is None:
+                self.final_since_s = now
+            with self.lock:
+                moving = self.motion_moving
+            # The motion layer stops once the navigator's cancelled path reaches it; a command
+            # it sent after "land" would only be refused.
+            if moving and now - self.final_since_s < self.land_wait_s:
+                return
             self.landed = True
             threading.Thread(target=self.tello.send, args=("land",), daemon=True).start()
         else:

@@ -129,6 +129,32 @@ def test_a_silent_exit_finder_times_out():
     assert "did not answer" in m.conductor.reason
 
 
+def test_the_exit_finders_time_to_answer_pauses_while_the_robot_is_lost():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, exit_answer_timeout_s=5.0, max_exit_attempts=1))
+    m.tick(start_requested=True)
+    m.run_scan()
+    assert m.conductor.phase == Phase.FIND_EXIT
+    m.tick(dt=3.0)
+    m.tick(tracking_lost=True)
+    m.tick(dt=10.0, scan_running=True)  # relocalising, far beyond the 5 s
+    m.tick(tracking_lost=False, scan_running=False)
+    assert m.tick(dt=1.0) == [] and m.conductor.phase == Phase.FIND_EXIT, m.conductor.reason
+    m.tick(dt=2.0)
+    assert m.conductor.phase == Phase.GAVE_UP and "did not answer" in m.conductor.reason
+
+
+def test_an_exit_answer_that_arrives_while_lost_is_used_once_tracking_is_back():
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(tracking_lost=True)
+    m.tick(scan_running=True, exit_answered=True, exit_xy=(3.0, 4.0), exit_alternatives=())
+    m.tick(tracking_lost=False, scan_running=False)
+    actions = m.tick()
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (3.0, 4.0))]
+    assert m.conductor.phase == Phase.GO_TO_EXIT
+
+
 def test_tracking_loss_stops_relocalises_then_resumes_the_goal():
     m = Mission(ConductorConfig(wall_scan_enabled=False))
     m.tick(start_requested=True)

@@ -187,6 +187,8 @@ class Conductor:
         self._scan_rounds = 0
         self._exit_attempts = 0
         self._exit_requested_s = None
+        self._exit_answer = None  # (exit_xy, alternatives, leads_out) not acted on yet
+        self._exit_paused_s = None  # when LOST or RECOVER interrupted the wait for the answer
         self._goal_failures = 0
         self._failure_since_s = None
         self._progress = None  # (time, best distance to the goal) of the last progress
@@ -237,9 +239,14 @@ class Conductor:
             return out
         if not obs.tracking_lost and obs.robot_xy is not None:
             self._last_tracked_xy = tuple(obs.robot_xy)
+        if self.phase == Phase.FIND_EXIT and obs.exit_answered:
+            # Seen once: an answer that arrives while lost or recovering is acted on after.
+            self._exit_answer = (obs.exit_xy, tuple(obs.exit_alternatives), obs.exit_leads_out)
         safety = self._safety(t, obs)
         if safety is not None:
             self._progress = None  # time lost or recovering is not a stall
+            if self.phase == Phase.FIND_EXIT and self._exit_paused_s is None:
+                self._exit_paused_s = t
             return safety
         if self.state == State.START:
             return self._start_state(t, obs)
@@ -399,12 +406,20 @@ class Conductor:
     def _ask_exit(self, t, why):
         self._exit_attempts += 1
         self._exit_requested_s = t
+        self._exit_answer = self._exit_paused_s = None
         self._set(t, State.IDLE, Phase.FIND_EXIT, why)
         return [Action(ActionKind.FIND_EXIT)]
 
     def _find_exit(self, t, obs):
         cfg = self.config
-        no_way_out = obs.exit_answered and obs.exit_xy is not None and not obs.exit_leads_out
+        if self._exit_paused_s is not None:
+            # The exit finder's time to answer does not run while the robot is lost or recovering.
+            self._exit_requested_s += t - self._exit_paused_s
+            self._exit_paused_s = None
+        answered = self._exit_answer is not None
+        exit_xy, alternatives, leads_out = self._exit_answer if answered else (None, (), True)
+        self._exit_answer = None
+        no_way_out = answered and exit_xy is not None and not leads_out
         if no_way_out and self._exit_attempts < cfg.max_exit_attempts:
             # Every candidate has a wall or furniture behind it on the map: look from elsewhere
             # before driving into it (on the last attempt the best candidate is tried).
@@ -412,8 +427,8 @@ class Conductor:
                       "exits found: scan more")
             return [self._scan("random")]
         candidates = []
-        if obs.exit_answered and obs.exit_xy is not None:
-            candidates = [c for c in [tuple(obs.exit_xy)] + [tuple(xy) for xy in obs.exit_alternatives]
+        if answered and exit_xy is not None:
+            candidates = [c for c in [tuple(exit_xy)] + [tuple(xy) for xy in alternatives]
                           if not self._was_rejected(c, obs.slam_map_index)]
         if candidates:
             self.exit_xy = candidates[0]
@@ -421,11 +436,11 @@ class Conductor:
             return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
                                   f"exit found at ({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
         timed_out = t - self._exit_requested_s > cfg.exit_answer_timeout_s
-        if not (obs.exit_answered or timed_out):
+        if not (answered or timed_out):
             return []
-        why = ("no exit in the map" if obs.exit_answered and obs.exit_xy is None
+        why = ("no exit in the map" if answered and exit_xy is None
                else "only exits already passed through without leaving the room"
-               if obs.exit_answered else "the exit finder did not answer")
+               if answered else "the exit finder did not answer")
         if self._exit_attempts >= cfg.max_exit_attempts:
             return self._give_up(t, f"{why} after {self._exit_attempts} attempts")
         self._set(t, State.START, Phase.WALL_SCAN, f"{why}: scan more")

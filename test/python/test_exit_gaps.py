@@ -146,3 +146,40 @@ def test_an_opening_seen_through_in_part_only_ranks_below_one_filled_by_its_back
     ignored = ExitFinderConfig(gap_cover_weight=0.0)
     without = find_exit(xy, method="gaps", up_axis=None, viewpoint=(0.0, 0.0), config=ignored)
     assert near(without.exits[0], centres[1], 0.4)
+
+
+def test_an_opening_onto_walls_at_many_depths_loses_confidence_a_single_backdrop_keeps():
+    # What is seen through opening B (y = 2) spreads from just behind it to over twice as far:
+    # a room beyond, not outside. Door A (y = -2) shows one backdrop.
+    doors = [Door(side=0, at_m=2.0, width_m=1.0), Door(side=2, at_m=3.0, width_m=0.8)]
+    xy, centres = room_cloud(RECT, doors, viewpoint=(0.0, 0.0), seed=5)
+    through_b = xy[:, 1] > 2.3
+    xy[through_b] *= np.random.default_rng(6).uniform(0.8, 2.0, np.count_nonzero(through_b))[:, None]
+
+    def confidences(config):
+        result = find_exit(xy, method="gaps", up_axis=None, viewpoint=(0.0, 0.0), config=config)
+        return [next(e[2] for e in result.exits if near(e, c, 0.4)) for c in centres]
+
+    a, b = confidences(None)
+    a_without, b_without = confidences(ExitFinderConfig(gap_spread_weight=0.0))
+    assert a == pytest.approx(a_without) and a > b
+    assert b < 0.5 * b_without
+
+
+def test_spread_beyond_the_free_share_divides_the_confidence():
+    cfg = ExitFinderConfig(gap_spread_free=0.5, gap_spread_weight=2.0)
+    base = gapslib.door_confidence(50, 0.2, cfg, 1.0)
+    assert gapslib.door_confidence(50, 0.2, cfg, 1.0, spread=0.4) == pytest.approx(base)
+    assert gapslib.door_confidence(50, 0.2, cfg, 1.0, spread=1.0) == pytest.approx(base / 2.0)
+
+
+def test_the_depth_spread_of_what_is_seen_through_an_opening():
+    n = 40
+    profile = gapslib.Profile(centre=np.zeros(2), angles=np.zeros(1), ranges=np.ones(1),
+                              bearing=np.zeros(n, dtype=int), radius=np.linspace(2.0, 4.0, n))
+    through = np.ones(n, dtype=bool)
+    expected = (np.quantile(profile.radius, 0.9) - np.quantile(profile.radius, 0.1)) / 2.0
+    assert gapslib.through_depth_spread(profile, through, 2.0) == pytest.approx(expected)
+    few = np.zeros(n, dtype=bool)
+    few[:9] = True
+    assert gapslib.through_depth_spread(profile, few, 2.0) == 0.0

@@ -27,7 +27,8 @@ as the place around which the fewest points hide behind the nearest surface
    than ``gap_beyond_margin`` of the range) make it a door rather than a blank stretch of wall,
    a door is about as wide as a door, and an exit shows what stands outside across its whole
    width (:func:`through_coverage`), where an inner door often shows a few objects of the far
-   room in part of it. Overlapping notches keep the best.
+   room in part of it, or the far room's walls at many depths (:func:`through_depth_spread`).
+   Overlapping notches keep the best.
 4. Door gaps from the feature extractor, when given, raise the confidence of the candidate they
    match (within ``external_match``) by ``external_weight`` (probabilistic or), or become
    candidates of their own, scored by the points seen through them.
@@ -398,8 +399,11 @@ def find_gaps(q, cfg, rng=None, external=None, viewpoint=None):
         a, b = profile.point(left), profile.point(right)
         width = float(np.hypot(*(b - a)))
         coverage = through_coverage(profile, left, right, through, cfg)
-        cands.append([door_centre(profile, q, left, right, through, cfg),
-                      door_confidence(int(np.count_nonzero(through)), width, cfg, coverage),
+        centre_xy = door_centre(profile, q, left, right, through, cfg)
+        spread = through_depth_spread(profile, through, float(np.hypot(*(centre_xy - centre))))
+        cands.append([centre_xy,
+                      door_confidence(int(np.count_nonzero(through)), width, cfg, coverage,
+                                      spread),
                       left, right])
     cands = _suppress_overlaps(cands, len(profile.angles))
     cands = _fuse_external(cands, external, profile, cfg)
@@ -415,7 +419,16 @@ def find_gaps(q, cfg, rng=None, external=None, viewpoint=None):
     return GapResult(exits=exits, outline=outline, details=details)
 
 
-def door_confidence(seen, width, cfg, coverage=1.0):
+def through_depth_spread(profile, through, door_range):
+    """Step 3: how far in depth the points seen through an opening spread, as the range between
+    their 10th and 90th percentile over the door's range (0 with fewer than ten points)."""
+    if np.count_nonzero(through) < 10 or door_range <= 0:
+        return 0.0
+    lo, hi = np.quantile(profile.radius[through], [0.1, 0.9])
+    return float((hi - lo) / door_range)
+
+
+def door_confidence(seen, width, cfg, coverage=1.0, spread=0.0):
     """Step 3's confidence in (0, 1): the evidence of the points seen through the opening,
     ``(seen + 1) / (seen + 1 + gap_beyond_points)`` (an opening with nothing seen through it is
     still a gap in the wall, but a weak one), times a width prior
@@ -425,11 +438,14 @@ def door_confidence(seen, width, cfg, coverage=1.0):
     side of an L. Times ``1 - gap_cover_weight * (1 - coverage)``, the share of the door's
     bearings with a surface seen through them (:func:`through_coverage`): an exit shows the
     nearest outside surface across its whole width, while an opening into more building
-    shows a few objects in part of it, its far walls being out of the camera's reach."""
+    shows a few objects in part of it, its far walls being out of the camera's reach. Times
+    ``1 / (1 + gap_spread_weight * max(0, spread - gap_spread_free))``: what is seen through an
+    exit stands at about one depth, a room beyond an inner door spreads over many."""
     evidence = (seen + 1.0) / (seen + 1.0 + cfg.gap_beyond_points)
     prior = np.exp(-0.5 * (np.log(max(width, 1e-9) / cfg.gap_door_width) /
                            cfg.gap_door_width_sigma) ** 2)
-    return float(evidence * prior * (1.0 - cfg.gap_cover_weight * (1.0 - coverage)))
+    deep = 1.0 / (1.0 + cfg.gap_spread_weight * max(0.0, spread - cfg.gap_spread_free))
+    return float(evidence * prior * (1.0 - cfg.gap_cover_weight * (1.0 - coverage)) * deep)
 
 
 def _suppress_overlaps(cands, n_bins):

@@ -12,9 +12,9 @@ Methods (``METHODS``):
   seen through them, ranked with a confidence, fused with the feature extractor's door gaps when
   given; see :mod:`.gaps`. When the given viewpoint shows no exit it looks once more from the
   viewpoint the cloud suggests (a camera that moved while mapping saw the door from elsewhere).
-  The default: it wins the simulator benchmark (bench/bench_exit_finder.py: 81.7 % of the
-  rooms with a door visible from the start), and it answers "no exit" rather than fall back to
-  a guess.
+  The default: it wins the simulator benchmark (bench/bench_exit_finder.py: 76.8 % of the
+  400 rooms with a door visible from the start; 72.0 % of the 200 its defaults were not tuned
+  on), and it answers "no exit" rather than fall back to a guess.
 * ``auto``: per cloud, ``gaps`` when it finds an opening with confidence >=
   ``auto_min_confidence``, else the seed's corner when the seed finds a room with an empty
   corner, else the deepest concave vertex; the result's method names the choice

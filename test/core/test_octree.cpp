@@ -1,12 +1,15 @@
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <cstdio>
+#include <random>
 #include <fstream>
 #include <stdexcept>
 #include <string>
 #include <unistd.h>
 
 #include "sparse_nav/core/octree_map.h"
+#include "synthetic.h"
 
 using sparse_nav::IoStatus;
 using sparse_nav::OctreeMap;
@@ -33,6 +36,34 @@ PointList wall()
 std::string tempPath(const std::string& name)
 {
   return "/tmp/sparse_nav_test_octree_" + std::to_string(::getpid()) + "_" + name;
+}
+
+/// FNV-1a of the tree's .bt file: its node structure and every node's state.
+std::uint64_t treeHash(const OctreeMap& map)
+{
+  const std::string path = tempPath("hash.bt");
+  EXPECT_TRUE(map.save(path).ok);
+  std::ifstream in(path, std::ios::binary);
+  std::uint64_t h = 1469598103934665603ULL;
+  for (char c; in.get(c);)
+  {
+    h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ULL;
+  }
+  std::remove(path.c_str());
+  return h;
+}
+
+/// A noisy 6 m x 5 m room with outliers around it, as a SLAM map gives.
+PointList noisyRoom()
+{
+  PointList pts = sparse_nav::test::makeRoom(6.0, 5.0, 0.9, 0.07, 0.02, 11);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> x(-1.0f, 7.0f), y(-1.0f, 6.0f), z(-0.5f, 2.6f);
+  for (int i = 0; i < 400; ++i)
+  {
+    pts.emplace_back(x(rng), y(rng), z(rng));
+  }
+  return pts;
 }
 }  // namespace
 
@@ -169,6 +200,62 @@ TEST(OctreeMap, CorruptFilesAreRefusedAndTheTreeIsKept)
   // The tree is unchanged after the failed loads.
   EXPECT_EQ(map.query(Eigen::Vector3d(3.0, 0.0, 0.0)), VoxelState::kOccupied);
   std::remove(good.c_str());
+}
+
+TEST(OctreeMap, InsertionsKeepTheTreesOfTheFirstImplementation)
+{
+  // Trees and counts that the straightforward implementation (per-ray hash sets, one sort per key
+  // list) gave for these insertions; faster ones must give the same bits.
+  struct Case
+  {
+    double free_factor;
+    double max_range_m;
+    bool two_cameras;
+    std::uint64_t hash_first, hash_second;
+    std::size_t rays_first, free_first, new_second, rays_second, free_second;
+  };
+  const Case cases[] = {
+    { 4.0, -1.0, false, 0x82dab3463989d825ULL, 0x951163ba2dcac049ULL, 3640, 6500, 679, 618, 3845 },
+    { 1.0, 3.0, true, 0x99fb3da52898e685ULL, 0xed7de7df093f235aULL, 12718, 276906, 679, 679, 38464 },
+    { 2.0, -1.0, true, 0xefc928deeee4e622ULL, 0x7171fc5012310fb1ULL, 11006, 52147, 679, 666, 16215 },
+  };
+  for (const Case& c : cases)
+  {
+    OctreeMapConfig cfg;
+    cfg.free_space_resolution_m = cfg.resolution_m * c.free_factor;
+    cfg.max_range_m = c.max_range_m;
+    OctreeMap map(cfg);
+    const std::vector<Eigen::Vector3d> cameras{ { 3.0, 2.5, 1.2 }, { 1.0, 1.0, 1.0 } };
+    PointList pts = noisyRoom();
+    std::vector<std::size_t> origin(pts.size(), 0);
+    for (std::size_t i = 0; c.two_cameras && i < pts.size(); i += 3)
+    {
+      origin[i] = 1;
+    }
+    const auto first = map.insert(pts, cameras, origin);
+    const std::uint64_t hash_first = treeHash(map);
+    // A local bundle adjustment: some points move, a few are new.
+    std::mt19937 rng(3);
+    std::normal_distribution<float> shift(0.0f, 0.05f);
+    for (std::size_t i = 0; i < pts.size(); i += 17)
+    {
+      pts[i] += Eigen::Vector3f(shift(rng), shift(rng), shift(rng));
+    }
+    for (int i = 0; i < 30; ++i)
+    {
+      pts.emplace_back(2.0f + 0.03f * i, 1.5f, 0.8f);
+      origin.push_back(0);
+    }
+    const auto second = map.insert(pts, cameras, origin);
+    const std::uint64_t hash_second = treeHash(map);
+    EXPECT_EQ(hash_first, c.hash_first) << c.free_factor;
+    EXPECT_EQ(hash_second, c.hash_second) << c.free_factor;
+    EXPECT_EQ(first.n_rays, c.rays_first);
+    EXPECT_EQ(first.n_free_voxels, c.free_first);
+    EXPECT_EQ(second.n_new_voxels, c.new_second);
+    EXPECT_EQ(second.n_rays, c.rays_second);
+    EXPECT_EQ(second.n_free_voxels, c.free_second);
+  }
 }
 
 TEST(OctreeMap, ConfigValidation)

@@ -9,6 +9,7 @@
 #include <limits>
 #include <sstream>
 #include <unordered_map>
+#include <unordered_set>
 #include <utility>
 #include <vector>
 #include <stdexcept>
@@ -449,7 +450,8 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
       hi = hi.max(origin_cells[c]);
     }
   }
-  inserted_.reserve(inserted_.size() + points.size());
+  // A later cloud mostly repeats the voxels of the earlier ones: room for this one's is enough.
+  inserted_.reserve(std::max(inserted_.size(), points.size()));
   for (std::size_t i = 0; i < points.size(); ++i)
   {
     const Eigen::Vector3d p = points[i].cast<double>();
@@ -465,7 +467,7 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
     e.origin = o;
     const std::uint64_t packed = (static_cast<std::uint64_t>(e.key[0]) << 32) |
                                  (static_cast<std::uint64_t>(e.key[1]) << 16) | e.key[2];
-    e.is_new = inserted_.insert(packed).second;
+    e.is_new = inserted_.insert(packed);
     endpoints.push_back(e);
     lo = lo.min(e.cell);
     hi = hi.max(e.cell);

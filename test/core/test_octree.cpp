@@ -6,8 +6,10 @@
 #include <fstream>
 #include <stdexcept>
 #include <string>
+#include <unordered_set>
 #include <unistd.h>
 
+#include "sparse_nav/core/flat_key_set.h"
 #include "sparse_nav/core/octree_map.h"
 #include "synthetic.h"
 
@@ -266,4 +268,31 @@ TEST(OctreeMap, ConfigValidation)
   cfg = OctreeMapConfig();
   cfg.prob_miss = 0.7;
   EXPECT_THROW(cfg.validate(), std::invalid_argument);
+}
+
+TEST(FlatKeySet, AgreesWithStdUnorderedSet)
+{
+  sparse_nav::FlatKeySet set;
+  std::unordered_set<std::uint64_t> reference;
+  std::mt19937_64 rng(9);
+  EXPECT_FALSE(set.contains(42));
+  for (int i = 0; i < 20000; ++i)
+  {
+    // Few distinct keys, so that repeats are common, plus the largest storable key.
+    const std::uint64_t key = i == 7 ? sparse_nav::FlatKeySet::kEmptyKey - 1 : rng() % 5000 * 0x10001ULL;
+    EXPECT_EQ(set.insert(key), reference.insert(key).second) << i;
+    if (i == 10000)
+    {
+      set.reserve(100000);  // a rehash keeps every key
+    }
+  }
+  EXPECT_EQ(set.size(), reference.size());
+  for (std::uint64_t key = 0; key < 5000 * 0x10001ULL; key += 0x10001ULL / 2)
+  {
+    EXPECT_EQ(set.contains(key), reference.count(key) == 1) << key;
+  }
+  set.clear();
+  EXPECT_EQ(set.size(), 0u);
+  EXPECT_FALSE(set.contains(0));
+  EXPECT_TRUE(set.insert(0));
 }

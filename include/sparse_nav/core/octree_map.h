@@ -5,11 +5,11 @@
 #include <cstdint>
 #include <memory>
 #include <string>
-#include <unordered_set>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "sparse_nav/core/flat_key_set.h"
 #include "sparse_nav/core/types.h"
 
 namespace octomap
@@ -130,7 +130,7 @@ private:
   OctreeMapConfig config_;
   std::unique_ptr<octomap::OcTree> tree_;
   unsigned free_levels_ = 0;  // free_space_resolution_m = resolution_m * 2^free_levels_
-  std::unordered_set<std::uint64_t> inserted_;  // packed keys of the endpoint voxels inserted so far
+  FlatKeySet inserted_;  // packed keys of the endpoint voxels inserted so far
 };
 
 }  // namespace sparse_nav

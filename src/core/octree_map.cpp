@@ -9,7 +9,6 @@
 #include <limits>
 #include <sstream>
 #include <unordered_map>
-#include <unordered_set>
 #include <utility>
 #include <vector>
 #include <stdexcept>
@@ -221,15 +220,21 @@ public:
   /// Sets bits on c.
   void mark(const Cell& c, std::uint8_t bits)
   {
-    // Rounding at a cell corner may step a traversal one cell past the box; such cells are skipped.
-    const Cell d = c - lo_;
-    if (static_cast<unsigned>(d.x()) >= static_cast<unsigned>(size_.x()) ||
-        static_cast<unsigned>(d.y()) >= static_cast<unsigned>(size_.y()) ||
-        static_cast<unsigned>(d.z()) >= static_cast<unsigned>(size_.z()))
+    if (!inBox(c))
     {
       return;
     }
     (dense_.empty() ? sparse_[packCell(c)] : dense_[index(c)]) |= bits;
+  }
+  bool isDense() const { return !dense_.empty(); }
+  /// mark() when isDense(): a traversal's inner loop then holds no hash-map code, whose register
+  /// pressure spilled the traversal's state to the stack.
+  void markDense(const Cell& c, std::uint8_t bits)
+  {
+    if (inBox(c))
+    {
+      dense_[index(c)] |= bits;
+    }
   }
   /// Calls visit(cell, bits) for every marked cell, in a fixed order.
   template <typename Visit>
@@ -256,6 +261,14 @@ public:
   }
 
 private:
+  /// Rounding at a cell corner may step a traversal one cell past the box; such cells are skipped.
+  bool inBox(const Cell& c) const
+  {
+    const Cell d = c - lo_;
+    return static_cast<unsigned>(d.x()) < static_cast<unsigned>(size_.x()) &&
+           static_cast<unsigned>(d.y()) < static_cast<unsigned>(size_.y()) &&
+           static_cast<unsigned>(d.z()) < static_cast<unsigned>(size_.z());
+  }
   std::size_t index(const Cell& c) const
   {
     const Cell d = c - lo_;
@@ -483,8 +496,20 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
   {
     marks.mark(e.cell, CellMarks::kEndpoint);
   }
+  auto castRay = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca, const Cell& cb,
+                     bool include_end) {
+    if (marks.isDense())
+    {
+      traverse(a, b, ca, cb, coarse, offset, include_end, [&](const Cell& c) { marks.markDense(c, CellMarks::kRay); });
+    }
+    else
+    {
+      traverse(a, b, ca, cb, coarse, offset, include_end, [&](const Cell& c) { marks.mark(c, CellMarks::kRay); });
+    }
+  };
   // One ray per (camera, coarse endpoint voxel) among the new endpoints, to the voxel's centre.
-  std::unordered_set<std::uint64_t> cast;
+  FlatKeySet cast;
+  cast.reserve(points.size());
   std::vector<octomap::OcTreeKey> hits;
   for (const auto& e : endpoints)
   {
@@ -500,15 +525,14 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
     {
       hits.push_back(e.key);
     }
-    if (!cast.insert(packCell(e.cell) ^ (static_cast<std::uint64_t>(e.origin) << 48)).second)
+    if (!cast.insert(packCell(e.cell) ^ (static_cast<std::uint64_t>(e.origin) << 48)))
     {
       continue;
     }
     ++stats.n_rays;
     if (in_range)
     {
-      traverse(origin, end, origin_cells[e.origin], e.cell, coarse, offset, false,
-               [&](const Cell& c) { marks.mark(c, CellMarks::kRay); });
+      castRay(origin, end, origin_cells[e.origin], e.cell, false);
     }
     else
     {
@@ -516,8 +540,7 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
       const Cell cs = cellOf(tree_->coordToKey(stop.x(), stop.y(), stop.z()));
       if (((cs - lo) >= 0).all() && ((hi - cs) >= 0).all())
       {
-        traverse(origin, stop, origin_cells[e.origin], cs, coarse, offset, true,
-                 [&](const Cell& c) { marks.mark(c, CellMarks::kRay); });
+        castRay(origin, stop, origin_cells[e.origin], cs, true);
       }
     }
   }

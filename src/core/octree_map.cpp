@@ -203,6 +203,23 @@ std::uint64_t packCell(const Cell& c)
          static_cast<std::uint64_t>(static_cast<std::uint16_t>(c.z()));
 }
 
+/// Spreads the low 16 bits of v three bits apart (bit b to bit 3b).
+std::uint64_t spreadBits(std::uint32_t v)
+{
+  std::uint64_t x = v & 0xffffU;
+  x = (x | x << 16) & 0x0000ff0000ffULL;
+  x = (x | x << 8) & 0x00f00f00f00fULL;
+  x = (x | x << 4) & 0x0c30c30c30c3ULL;
+  x = (x | x << 2) & 0x249249249249ULL;
+  return x;
+}
+
+/// Interleaves the bits of x, y, z (16 bits each) into a Morton code (x lowest).
+std::uint64_t mortonCode(std::uint32_t x, std::uint32_t y, std::uint32_t z)
+{
+  return spreadBits(x) | spreadBits(y) << 1 | spreadBits(z) << 2;
+}
+
 /// Marks on coarse voxels: dense over a bounding box when it is small enough, hashed otherwise.
 class CellMarks
 {
@@ -236,27 +253,37 @@ public:
       dense_[index(c)] |= bits;
     }
   }
-  /// Calls visit(cell, bits) for every marked cell, in a fixed order.
+  /// Calls visit(Morton code, bits) for every marked cell, in increasing code order: the order
+  /// the octree update needs, reached in a dense box by descending its aligned cubes in Morton
+  /// order instead of sorting ~10^5 codes afterwards.
   template <typename Visit>
-  void forEach(Visit visit) const
+  void forEachInMortonOrder(Visit visit) const
   {
     if (!dense_.empty())
     {
-      std::size_t i = 0;
-      for (int z = 0; z < size_.z(); ++z)
-        for (int y = 0; y < size_.y(); ++y)
-          for (int x = 0; x < size_.x(); ++x, ++i)
-            if (dense_[i])
-              visit(Cell(lo_.x() + x, lo_.y() + y, lo_.z() + z), dense_[i]);
+      const Cell hi = lo_ + size_ - 1;
+      int level = 0;
+      while ((lo_.x() >> level) != (hi.x() >> level) || (lo_.y() >> level) != (hi.y() >> level) ||
+             (lo_.z() >> level) != (hi.z() >> level))
+      {
+        ++level;
+      }
+      visitCube(Cell(lo_.x() >> level << level, lo_.y() >> level << level, lo_.z() >> level << level), level, visit);
       return;
     }
-    std::vector<std::pair<std::uint64_t, std::uint8_t>> items(sparse_.begin(), sparse_.end());
+    std::vector<std::pair<std::uint64_t, std::uint8_t>> items;
+    items.reserve(sparse_.size());
+    for (const auto& kv : sparse_)
+    {
+      items.emplace_back(mortonCode(static_cast<std::uint32_t>((kv.first >> 32) & 0xffff),
+                                    static_cast<std::uint32_t>((kv.first >> 16) & 0xffff),
+                                    static_cast<std::uint32_t>(kv.first & 0xffff)),
+                         kv.second);
+    }
     std::sort(items.begin(), items.end());
     for (const auto& kv : items)
     {
-      visit(Cell(static_cast<int>((kv.first >> 32) & 0xffff), static_cast<int>((kv.first >> 16) & 0xffff),
-                 static_cast<int>(kv.first & 0xffff)),
-            kv.second);
+      visit(kv.first, kv.second);
     }
   }
 
@@ -273,6 +300,49 @@ private:
   {
     const Cell d = c - lo_;
     return (static_cast<std::size_t>(d.z()) * size_.y() + d.y()) * size_.x() + d.x();
+  }
+  /// The marked cells of the box in the aligned cube of edge 2^level at corner, in Morton order
+  /// (a cube's children in Morton order: x is the lowest bit of the child index).
+  template <typename Visit>
+  void visitCube(const Cell& corner, int level, Visit& visit) const
+  {
+    const Cell d = corner - lo_;
+    if (((d + (1 << level)) <= 0).any() || (d >= size_).any())
+    {
+      return;
+    }
+    if (level == 1)
+    {
+      for (int i = 0; i < 8; ++i)
+      {
+        const Cell c(corner.x() + (i & 1), corner.y() + ((i >> 1) & 1), corner.z() + (i >> 2));
+        const std::uint8_t bits = inBox(c) ? dense_[index(c)] : 0;
+        if (bits)
+        {
+          visit(mortonCode(static_cast<std::uint32_t>(c.x()), static_cast<std::uint32_t>(c.y()),
+                           static_cast<std::uint32_t>(c.z())),
+                bits);
+        }
+      }
+      return;
+    }
+    if (level == 0)
+    {
+      const std::uint8_t bits = dense_[index(corner)];
+      if (bits)
+      {
+        visit(mortonCode(static_cast<std::uint32_t>(corner.x()), static_cast<std::uint32_t>(corner.y()),
+                         static_cast<std::uint32_t>(corner.z())),
+              bits);
+      }
+      return;
+    }
+    const int half = 1 << (level - 1);
+    for (int i = 0; i < 8; ++i)
+    {
+      visitCube(Cell(corner.x() + (i & 1) * half, corner.y() + ((i >> 1) & 1) * half, corner.z() + (i >> 2) * half),
+                level - 1, visit);
+    }
   }
   Cell lo_, size_;
   std::vector<std::uint8_t> dense_;
@@ -325,23 +395,6 @@ void traverse(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca
   {
     visit(c);
   }
-}
-
-/// Spreads the low 16 bits of v three bits apart (bit b to bit 3b).
-std::uint64_t spreadBits(std::uint32_t v)
-{
-  std::uint64_t x = v & 0xffffU;
-  x = (x | x << 16) & 0x0000ff0000ffULL;
-  x = (x | x << 8) & 0x00f00f00f00fULL;
-  x = (x | x << 4) & 0x0c30c30c30c3ULL;
-  x = (x | x << 2) & 0x249249249249ULL;
-  return x;
-}
-
-/// Interleaves the bits of x, y, z (16 bits each) into a Morton code (x lowest).
-std::uint64_t mortonCode(std::uint32_t x, std::uint32_t y, std::uint32_t z)
-{
-  return spreadBits(x) | spreadBits(y) << 1 | spreadBits(z) << 2;
 }
 
 /// Applies a log-odds update to every leaf under node; unknown children become free leaves.
@@ -573,14 +626,12 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
     // Free cells never share a coarse voxel with an endpoint, so no two updates overlap.
     const std::size_t n_hits = updates.size();
     std::vector<std::uint64_t> free_cells;
-    marks.forEach([&](const Cell& c, std::uint8_t bits) {
+    marks.forEachInMortonOrder([&](std::uint64_t code, std::uint8_t bits) {
       if (bits == CellMarks::kRay)
       {
-        free_cells.push_back(mortonCode(static_cast<std::uint32_t>(c.x()), static_cast<std::uint32_t>(c.y()),
-                                        static_cast<std::uint32_t>(c.z())));
+        free_cells.push_back(code);
       }
     });
-    boost::sort::spreadsort::integer_sort(free_cells.begin(), free_cells.end());
     stats.n_free_voxels = free_cells.size();
     for (std::size_t i = 0; i < free_cells.size();)
     {

@@ -244,15 +244,26 @@ public:
     (dense_.empty() ? sparse_[packCell(c)] : dense_[index(c)]) |= bits;
   }
   bool isDense() const { return !dense_.empty(); }
-  /// mark() when isDense(): a traversal's inner loop then holds no hash-map code, whose register
-  /// pressure spilled the traversal's state to the stack.
-  void markDense(const Cell& c, std::uint8_t bits)
+  /// mark() for a dense box, with the box in its own copies: a traversal's inner loop then holds
+  /// no hash-map code (whose register pressure spilled the traversal's state to the stack), and
+  /// its byte stores, which may alias anything, do not force the box to be reloaded per cell.
+  struct DenseWriter
   {
-    if (inBox(c))
+    Cell lo, size;
+    std::uint8_t* data;
+    void mark(const Cell& c, std::uint8_t bits) const
     {
-      dense_[index(c)] |= bits;
+      const Cell d = c - lo;
+      if (static_cast<unsigned>(d.x()) < static_cast<unsigned>(size.x()) &&
+          static_cast<unsigned>(d.y()) < static_cast<unsigned>(size.y()) &&
+          static_cast<unsigned>(d.z()) < static_cast<unsigned>(size.z()))
+      {
+        data[(static_cast<std::size_t>(d.z()) * size.y() + d.y()) * size.x() + d.x()] |= bits;
+      }
     }
-  }
+  };
+  /// The writer of a dense box (isDense()); valid while this lives.
+  DenseWriter denseWriter() { return DenseWriter{ lo_, size_, dense_.data() }; }
   /// Calls visit(Morton code, bits) for every marked cell, in increasing code order: the order
   /// the octree update needs, reached in a dense box by descending its aligned cubes in Morton
   /// order instead of sorting ~10^5 codes afterwards.
@@ -553,7 +564,8 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
                      bool include_end) {
     if (marks.isDense())
     {
-      traverse(a, b, ca, cb, coarse, offset, include_end, [&](const Cell& c) { marks.markDense(c, CellMarks::kRay); });
+      const CellMarks::DenseWriter writer = marks.denseWriter();
+      traverse(a, b, ca, cb, coarse, offset, include_end, [writer](const Cell& c) { writer.mark(c, CellMarks::kRay); });
     }
     else
     {

@@ -264,14 +264,30 @@ public:
   };
   /// The writer of a dense box (isDense()); valid while this lives.
   DenseWriter denseWriter() { return DenseWriter{ lo_, size_, dense_.data() }; }
-  /// Calls visit(Morton code, bits) for every marked cell, in increasing code order: the order
-  /// the octree update needs, reached in a dense box by descending its aligned cubes in Morton
-  /// order instead of sorting ~10^5 codes afterwards.
+  /// Calls visit(Morton code) for every cell whose marks are exactly `bits`, in increasing code
+  /// order: the order the octree update needs, reached in a dense box by descending its aligned
+  /// cubes in Morton order instead of sorting ~10^5 codes afterwards. Cubes whose rows hold no
+  /// such cell are skipped whole, so an update that cast a few rays does not walk the whole box.
   template <typename Visit>
-  void forEachInMortonOrder(Visit visit) const
+  void forEachWithBits(std::uint8_t bits, Visit visit) const
   {
     if (!dense_.empty())
     {
+      // Summed-area table over (y, z) of the x-rows that hold a wanted cell.
+      const int w = size_.y() + 1;
+      std::vector<std::uint32_t> rows(static_cast<std::size_t>(w) * (size_.z() + 1), 0);
+      for (int z = 0; z < size_.z(); ++z)
+      {
+        for (int y = 0; y < size_.y(); ++y)
+        {
+          const std::uint8_t* row = &dense_[index(lo_ + Cell(0, y, z))];
+          const bool any = std::find(row, row + size_.x(), bits) != row + size_.x();
+          rows[static_cast<std::size_t>(z + 1) * w + y + 1] = static_cast<std::uint32_t>(any) +
+                                                              rows[static_cast<std::size_t>(z) * w + y + 1] +
+                                                              rows[static_cast<std::size_t>(z + 1) * w + y] -
+                                                              rows[static_cast<std::size_t>(z) * w + y];
+        }
+      }
       const Cell hi = lo_ + size_ - 1;
       int level = 0;
       while ((lo_.x() >> level) != (hi.x() >> level) || (lo_.y() >> level) != (hi.y() >> level) ||
@@ -279,22 +295,24 @@ public:
       {
         ++level;
       }
-      visitCube(Cell(lo_.x() >> level << level, lo_.y() >> level << level, lo_.z() >> level << level), level, visit);
+      visitCube(Cell(lo_.x() >> level << level, lo_.y() >> level << level, lo_.z() >> level << level), level, bits,
+                rows, visit);
       return;
     }
-    std::vector<std::pair<std::uint64_t, std::uint8_t>> items;
-    items.reserve(sparse_.size());
+    std::vector<std::uint64_t> codes;
     for (const auto& kv : sparse_)
     {
-      items.emplace_back(mortonCode(static_cast<std::uint32_t>((kv.first >> 32) & 0xffff),
-                                    static_cast<std::uint32_t>((kv.first >> 16) & 0xffff),
-                                    static_cast<std::uint32_t>(kv.first & 0xffff)),
-                         kv.second);
+      if (kv.second == bits)
+      {
+        codes.push_back(mortonCode(static_cast<std::uint32_t>((kv.first >> 32) & 0xffff),
+                                   static_cast<std::uint32_t>((kv.first >> 16) & 0xffff),
+                                   static_cast<std::uint32_t>(kv.first & 0xffff)));
+      }
     }
-    std::sort(items.begin(), items.end());
-    for (const auto& kv : items)
+    std::sort(codes.begin(), codes.end());
+    for (const std::uint64_t code : codes)
     {
-      visit(kv.first, kv.second);
+      visit(code);
     }
   }
 
@@ -312,47 +330,44 @@ private:
     const Cell d = c - lo_;
     return (static_cast<std::size_t>(d.z()) * size_.y() + d.y()) * size_.x() + d.x();
   }
-  /// The marked cells of the box in the aligned cube of edge 2^level at corner, in Morton order
-  /// (a cube's children in Morton order: x is the lowest bit of the child index).
+  /// The cells marked exactly `bits` in the box and in the aligned cube of edge 2^level at corner,
+  /// in Morton order (a cube's children in Morton order: x is the lowest bit of the child index).
+  /// rows: forEachWithBits' summed-area table of the rows holding such cells.
   template <typename Visit>
-  void visitCube(const Cell& corner, int level, Visit& visit) const
+  void visitCube(const Cell& corner, int level, std::uint8_t bits, const std::vector<std::uint32_t>& rows,
+                 Visit& visit) const
   {
     const Cell d = corner - lo_;
-    if (((d + (1 << level)) <= 0).any() || (d >= size_).any())
+    const int edge = 1 << level;
+    if (((d + edge) <= 0).any() || (d >= size_).any())
     {
       return;
     }
-    if (level == 1)
+    const int y0 = std::max(0, d.y()), y1 = std::min(size_.y(), d.y() + edge);
+    const int z0 = std::max(0, d.z()), z1 = std::min(size_.z(), d.z() + edge);
+    const std::size_t w = static_cast<std::size_t>(size_.y()) + 1;
+    if (rows[z1 * w + y1] - rows[z0 * w + y1] - rows[z1 * w + y0] + rows[z0 * w + y0] == 0)
     {
-      for (int i = 0; i < 8; ++i)
+      return;
+    }
+    if (level <= 1)
+    {
+      for (int i = 0; i < (level == 1 ? 8 : 1); ++i)
       {
         const Cell c(corner.x() + (i & 1), corner.y() + ((i >> 1) & 1), corner.z() + (i >> 2));
-        const std::uint8_t bits = inBox(c) ? dense_[index(c)] : 0;
-        if (bits)
+        if (inBox(c) && dense_[index(c)] == bits)
         {
           visit(mortonCode(static_cast<std::uint32_t>(c.x()), static_cast<std::uint32_t>(c.y()),
-                           static_cast<std::uint32_t>(c.z())),
-                bits);
+                           static_cast<std::uint32_t>(c.z())));
         }
       }
       return;
     }
-    if (level == 0)
-    {
-      const std::uint8_t bits = dense_[index(corner)];
-      if (bits)
-      {
-        visit(mortonCode(static_cast<std::uint32_t>(corner.x()), static_cast<std::uint32_t>(corner.y()),
-                         static_cast<std::uint32_t>(corner.z())),
-              bits);
-      }
-      return;
-    }
-    const int half = 1 << (level - 1);
+    const int half = edge / 2;
     for (int i = 0; i < 8; ++i)
     {
       visitCube(Cell(corner.x() + (i & 1) * half, corner.y() + ((i >> 1) & 1) * half, corner.z() + (i >> 2) * half),
-                level - 1, visit);
+                level - 1, bits, rows, visit);
     }
   }
   Cell lo_, size_;
@@ -574,9 +589,7 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
   };
   // One ray per (camera, coarse endpoint voxel) among the new endpoints, to the voxel's centre.
   FlatKeySet cast;
-  cast.reserve(points.size());
   std::vector<std::uint64_t> hit_codes;  // Morton codes of the new endpoint voxels to mark as hits
-  hit_codes.reserve(points.size());
   octomap::OcTreeKey first_hit;
   for (const auto& e : endpoints)
   {
@@ -642,12 +655,7 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
     // Free cells never share a coarse voxel with an endpoint, so no two updates overlap.
     const std::size_t n_hits = updates.size();
     std::vector<std::uint64_t> free_cells;
-    marks.forEachInMortonOrder([&](std::uint64_t code, std::uint8_t bits) {
-      if (bits == CellMarks::kRay)
-      {
-        free_cells.push_back(code);
-      }
-    });
+    marks.forEachWithBits(CellMarks::kRay, [&](std::uint64_t code) { free_cells.push_back(code); });
     stats.n_free_voxels = free_cells.size();
     for (std::size_t i = 0; i < free_cells.size();)
     {

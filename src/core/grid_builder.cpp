@@ -7,9 +7,10 @@
 #include <stdexcept>
 #include <tuple>
 
-#include <boost/sort/spreadsort/integer_sort.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "radix_sort.h"
 
 namespace sparse_nav
 {
@@ -48,8 +49,8 @@ void bresenham(int x0, int y0, int x1, int y1, Visit visit)
 }
 
 /// Sorts rays (x0, y0, x1, y1 lexicographic) and drops repeats. Rays within 65536 cells of each
-/// other, as in any real map, are packed into one 64-bit key in that same order and radix-sorted
-/// (boost spreadsort): a hundred thousand rays per cloud made std::sort the grid's largest cost.
+/// other, as in any real map, are packed into one 64-bit key in that same order and radix-sorted:
+/// a hundred thousand rays per cloud made std::sort the grid's largest cost.
 void sortUnique(std::vector<GridBuilder::Ray>& rays)
 {
   if (rays.empty())
@@ -75,7 +76,7 @@ void sortUnique(std::vector<GridBuilder::Ray>& rays)
     keys.push_back(static_cast<std::uint64_t>(r.x0 - lo) << 48 | static_cast<std::uint64_t>(r.y0 - lo) << 32 |
                    static_cast<std::uint64_t>(r.x1 - lo) << 16 | static_cast<std::uint64_t>(r.y1 - lo));
   }
-  boost::sort::spreadsort::integer_sort(keys.begin(), keys.end());
+  radixSort(keys);
   keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
   rays.resize(keys.size());
   for (std::size_t i = 0; i < keys.size(); ++i)
@@ -87,8 +88,8 @@ void sortUnique(std::vector<GridBuilder::Ray>& rays)
 }
 
 /// Sorts (y, x) cells and drops repeats. update() keeps cell indices within +-(1e9 + 1), so the
-/// offsets from the minima fit 32 bits each and one 64-bit key per cell, radix-sorted (boost
-/// spreadsort), orders them as the pairs do: std::sort of ~45k pairs took ~1.5 ms per full rebuild.
+/// offsets from the minima fit 32 bits each and one 64-bit key per cell, radix-sorted, orders them
+/// as the pairs do: std::sort of ~45k pairs took ~1.5 ms per full rebuild.
 void sortUniqueCells(std::vector<std::pair<std::int64_t, std::int64_t>>& cells)
 {
   if (cells.empty())
@@ -107,7 +108,7 @@ void sortUniqueCells(std::vector<std::pair<std::int64_t, std::int64_t>>& cells)
   {
     keys.push_back(static_cast<std::uint64_t>(c.first - min_y) << 32 | static_cast<std::uint64_t>(c.second - min_x));
   }
-  boost::sort::spreadsort::integer_sort(keys.begin(), keys.end());
+  radixSort(keys);
   keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
   cells.resize(keys.size());
   for (std::size_t i = 0; i < keys.size(); ++i)

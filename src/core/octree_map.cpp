@@ -13,9 +13,10 @@
 #include <vector>
 #include <stdexcept>
 
-#include <boost/sort/spreadsort/integer_sort.hpp>
 #include <octomap/OcTree.h>
 #include <octomap/octomap.h>
+
+#include "radix_sort.h"
 
 namespace sparse_nav
 {
@@ -637,9 +638,9 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
     hit_codes.front() = hit_codes.back();
     hit_codes.pop_back();
   }
-  // Radix sort (boost spreadsort) of the bare codes: ~10^5 keys per insertion, where std::sort
-  // cost milliseconds, and sorting 16-byte updates through a key functor twice as long.
-  boost::sort::spreadsort::integer_sort(hit_codes.begin(), hit_codes.end());
+  // Radix sort of the bare codes: ~10^5 keys per insertion, where std::sort cost milliseconds, and
+  // sorting 16-byte updates through a key functor twice as long.
+  radixSort(hit_codes);
   std::vector<NodeUpdate> updates;
   updates.reserve(hit_codes.size());
   for (const std::uint64_t code : hit_codes)

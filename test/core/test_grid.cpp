@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <random>
 #include <set>
@@ -15,6 +16,7 @@
 #include <stdexcept>
 
 #include "sparse_nav/core/grid_builder.h"
+#include "../../src/core/radix_sort.h"
 
 using sparse_nav::FreeRay;
 using sparse_nav::GridBuilder;
@@ -444,4 +446,31 @@ TEST(GridBuilder, ConfigValidation)
   cfg = GridBuilderConfig();
   cfg.tile_size_cells = 1;
   EXPECT_THROW(cfg.validate(), std::invalid_argument);
+}
+
+TEST(RadixSort, AgreesWithStdSort)
+{
+  std::mt19937_64 rng(4);
+  // Keys that differ in every bit, keys with equal high bits (packed cells), repeats, and the
+  // trivial cases.
+  std::vector<std::vector<std::uint64_t>> cases{ {}, { 7 }, { 5, 5, 5 } };
+  std::vector<std::uint64_t> wide, packed, repeats;
+  for (int i = 0; i < 30000; ++i)
+  {
+    wide.push_back(rng());
+    packed.push_back(0x8000400020000000ULL + (rng() % 600) * 0x100000000ULL + rng() % 5000);
+    repeats.push_back(rng() % 97 << 40);
+  }
+  wide.push_back(~std::uint64_t{ 0 });
+  wide.push_back(0);
+  cases.push_back(wide);
+  cases.push_back(packed);
+  cases.push_back(repeats);
+  for (auto keys : cases)
+  {
+    std::vector<std::uint64_t> expected = keys;
+    std::sort(expected.begin(), expected.end());
+    sparse_nav::radixSort(keys);
+    EXPECT_EQ(keys, expected);
+  }
 }

@@ -1,0 +1,57 @@
+#ifndef SPARSE_NAV_CORE_RADIX_SORT_H
+#define SPARSE_NAV_CORE_RADIX_SORT_H
+
+// Private helper of sparse_nav_core (not installed): LSD radix sort of 64-bit keys.
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace sparse_nav
+{
+/**
+ * @brief Sorts keys ascending: least-significant-digit radix sort, 11 bits per pass, over only
+ * the bits in which the keys differ. The core sorts packed cell keys (Morton codes, ray and cell
+ * keys) whose high bits are mostly equal; on ~10^5 of them boost's spreadsort, which ends in
+ * comparison sorts of small bins, took twice as long (~2 ms against ~1 ms).
+ */
+inline void radixSort(std::vector<std::uint64_t>& keys)
+{
+  if (keys.size() < 2)
+  {
+    return;
+  }
+  std::uint64_t differ = 0;
+  for (const std::uint64_t k : keys)
+  {
+    differ |= k ^ keys.front();
+  }
+  constexpr int kDigitBits = 11;
+  constexpr std::size_t kBuckets = std::size_t{ 1 } << kDigitBits;
+  std::vector<std::uint64_t> buffer(keys.size());
+  for (int shift = 0; shift < 64 && (differ >> shift) != 0; shift += kDigitBits)
+  {
+    if (((differ >> shift) & (kBuckets - 1)) == 0)
+    {
+      continue;  // every key has the same digit here
+    }
+    std::vector<std::size_t> start(kBuckets + 1, 0);
+    for (const std::uint64_t k : keys)
+    {
+      ++start[((k >> shift) & (kBuckets - 1)) + 1];
+    }
+    for (std::size_t b = 1; b <= kBuckets; ++b)
+    {
+      start[b] += start[b - 1];
+    }
+    for (const std::uint64_t k : keys)
+    {
+      buffer[start[(k >> shift) & (kBuckets - 1)]++] = k;
+    }
+    keys.swap(buffer);
+  }
+}
+
+}  // namespace sparse_nav
+
+#endif  // SPARSE_NAV_CORE_RADIX_SORT_H

@@ -148,11 +148,24 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
 
   const double z_lo = config_.floor_clearance_m, z_hi = config_.ceiling_height_m;
   const bool filter = octree_ && config_.free_space_filter;
+  // Heights first, so that the octree states of the band points come from one batch query.
+  std::vector<double> heights(points.size());
+  PointList band;
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    heights[i] = plane.normal.dot(points[i].cast<double>()) + plane.d;
+    if (filter && !(heights[i] < z_lo) && !(heights[i] > z_hi))
+    {
+      band.push_back(out[i]);
+    }
+  }
+  const std::vector<VoxelState> band_states = filter ? octree_->query(band) : std::vector<VoxelState>();
+  std::size_t next_band = 0;
   r.obstacles.reserve(points.size());
   r.rays.reserve(points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
   {
-    const double h = plane.normal.dot(points[i].cast<double>()) + plane.d;
+    const double h = heights[i];
     if (h < z_lo)
     {
       ++r.n_floor_band;
@@ -165,7 +178,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     {
       ++r.n_ceiling_band;
     }
-    else if (filter && octree_->query(out[i].cast<double>()) == VoxelState::kFree)
+    else if (filter && band_states[next_band++] == VoxelState::kFree)
     {
       ++r.n_freed;
     }

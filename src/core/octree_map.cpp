@@ -697,6 +697,70 @@ VoxelState OctreeMap::query(const Eigen::Vector3d& position) const
   return tree_->isNodeOccupied(node) ? VoxelState::kOccupied : VoxelState::kFree;
 }
 
+std::vector<VoxelState> OctreeMap::query(const PointList& positions) const
+{
+  std::vector<VoxelState> states(positions.size(), VoxelState::kUnknown);
+  const octomap::OcTreeNode* root = tree_->getRoot();
+  if (!root)
+  {
+    return states;
+  }
+  // (Morton code of the fine key, position index) of the positions search() would find a key for.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+  order.reserve(positions.size());
+  for (std::size_t i = 0; i < positions.size(); ++i)
+  {
+    const Eigen::Vector3d p = positions[i].cast<double>();
+    octomap::OcTreeKey k;
+    if (inRange(p) && tree_->coordToKeyChecked(p.x(), p.y(), p.z(), k))
+    {
+      order.emplace_back(mortonCode(k[0], k[1], k[2]), static_cast<std::uint32_t>(i));
+    }
+  }
+  radixSortBy(order, [](const std::pair<std::uint64_t, std::uint32_t>& o) { return o.first; });
+  // OcTree::search(key) walks from the root, taking child (code >> 3 * level) & 7 at each level
+  // from the top; path[s] is the node after s steps of the previous walk, which took `reached`.
+  const unsigned depth = tree_->getTreeDepth();
+  std::vector<const octomap::OcTreeNode*> path(depth + 1, nullptr);
+  path[0] = root;
+  unsigned reached = 0;
+  std::uint64_t previous = 0;
+  for (const auto& o : order)
+  {
+    const std::uint64_t code = o.first;
+    unsigned shared = depth;  // leading 3-bit child indices equal to the previous code's
+    if (code != previous)
+    {
+      const int top = 63 - __builtin_clzll(code ^ previous);
+      shared = depth - 1 - static_cast<unsigned>(top) / 3;
+    }
+    unsigned step = std::min(shared, reached);
+    const octomap::OcTreeNode* found = nullptr;
+    for (; step < depth; ++step)
+    {
+      const octomap::OcTreeNode* node = path[step];
+      const unsigned pos = static_cast<unsigned>((code >> (3 * (depth - 1 - step))) & 7U);
+      if (!tree_->nodeChildExists(node, pos))
+      {
+        found = tree_->nodeHasChildren(node) ? nullptr : node;
+        break;
+      }
+      path[step + 1] = tree_->getNodeChild(node, pos);
+    }
+    if (step == depth)
+    {
+      found = path[depth];
+    }
+    reached = step;
+    previous = code;
+    if (found)
+    {
+      states[o.second] = tree_->isNodeOccupied(found) ? VoxelState::kOccupied : VoxelState::kFree;
+    }
+  }
+  return states;
+}
+
 PointList OctreeMap::occupiedCenters() const
 {
   PointList out;

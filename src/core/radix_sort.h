@@ -10,25 +10,28 @@
 namespace sparse_nav
 {
 /**
- * @brief Sorts keys ascending: least-significant-digit radix sort, 11 bits per pass, over only
- * the bits in which the keys differ. The core sorts packed cell keys (Morton codes, ray and cell
- * keys) whose high bits are mostly equal; on ~10^5 of them boost's spreadsort, which ends in
- * comparison sorts of small bins, took twice as long (~2 ms against ~1 ms).
+ * @brief Sorts items by key(item) (a 64-bit key) ascending, stably: least-significant-digit radix
+ * sort, 11 bits per pass, over only the bits in which the keys differ. The core sorts packed cell
+ * keys (Morton codes, ray and cell keys) whose high bits are mostly equal; on ~10^5 of them
+ * boost's spreadsort, which ends in comparison sorts of small bins, took twice as long (~2 ms
+ * against ~1 ms).
  */
-inline void radixSort(std::vector<std::uint64_t>& keys)
+template <typename T, typename Key>
+void radixSortBy(std::vector<T>& items, Key key)
 {
-  if (keys.size() < 2)
+  if (items.size() < 2)
   {
     return;
   }
   std::uint64_t differ = 0;
-  for (const std::uint64_t k : keys)
+  const std::uint64_t first = key(items.front());
+  for (const T& item : items)
   {
-    differ |= k ^ keys.front();
+    differ |= key(item) ^ first;
   }
   constexpr int kDigitBits = 11;
   constexpr std::size_t kBuckets = std::size_t{ 1 } << kDigitBits;
-  std::vector<std::uint64_t> buffer(keys.size());
+  std::vector<T> buffer(items.size());
   for (int shift = 0; shift < 64 && (differ >> shift) != 0; shift += kDigitBits)
   {
     if (((differ >> shift) & (kBuckets - 1)) == 0)
@@ -36,20 +39,26 @@ inline void radixSort(std::vector<std::uint64_t>& keys)
       continue;  // every key has the same digit here
     }
     std::vector<std::size_t> start(kBuckets + 1, 0);
-    for (const std::uint64_t k : keys)
+    for (const T& item : items)
     {
-      ++start[((k >> shift) & (kBuckets - 1)) + 1];
+      ++start[((key(item) >> shift) & (kBuckets - 1)) + 1];
     }
     for (std::size_t b = 1; b <= kBuckets; ++b)
     {
       start[b] += start[b - 1];
     }
-    for (const std::uint64_t k : keys)
+    for (const T& item : items)
     {
-      buffer[start[(k >> shift) & (kBuckets - 1)]++] = k;
+      buffer[start[(key(item) >> shift) & (kBuckets - 1)]++] = item;
     }
-    keys.swap(buffer);
+    items.swap(buffer);
   }
+}
+
+/// @brief Sorts keys ascending (radixSortBy with the key itself).
+inline void radixSort(std::vector<std::uint64_t>& keys)
+{
+  radixSortBy(keys, [](std::uint64_t k) { return k; });
 }
 
 }  // namespace sparse_nav

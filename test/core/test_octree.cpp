@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <fstream>
 #include <stdexcept>
@@ -264,6 +265,39 @@ TEST(OctreeMap, InsertionsKeepTheTreesOfTheFirstImplementation)
     EXPECT_EQ(second.n_rays, c.rays_second);
     EXPECT_EQ(second.n_free_voxels, c.free_second);
   }
+}
+
+TEST(OctreeMap, BatchQueryGivesTheStateOfEachPosition)
+{
+  OctreeMap map;
+  EXPECT_EQ(map.query(PointList{ { 1.0f, 1.0f, 1.0f } }), std::vector<VoxelState>{ VoxelState::kUnknown });
+  PointList pts = noisyRoom();
+  map.insert(pts, Eigen::Vector3d(3.0, 2.5, 1.2));
+  // A point in known free space splits a free block: free, occupied and unknown leaves at every size.
+  map.insert(PointList{ { 2.02f, 2.02f, 1.02f } }, Eigen::Vector3d(3.0, 2.5, 1.2));
+  PointList positions;
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> x(-1.5f, 7.5f), y(-1.5f, 6.5f), z(-1.0f, 3.0f);
+  for (int i = 0; i < 20000; ++i)
+  {
+    positions.emplace_back(x(rng), y(rng), z(rng));
+  }
+  // The points themselves (occupied, often repeated keys), and positions no key holds.
+  positions.insert(positions.end(), pts.begin(), pts.begin() + 2000);
+  positions.emplace_back(2.02f, 2.02f, 1.02f);
+  positions.emplace_back(1e9f, 0.0f, 0.0f);
+  positions.emplace_back(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f);
+  const std::vector<VoxelState> states = map.query(positions);
+  ASSERT_EQ(states.size(), positions.size());
+  std::size_t counts[3] = { 0, 0, 0 };
+  for (std::size_t i = 0; i < positions.size(); ++i)
+  {
+    ASSERT_EQ(states[i], map.query(Eigen::Vector3d(positions[i].cast<double>()))) << i;
+    ++counts[static_cast<int>(states[i])];
+  }
+  EXPECT_GT(counts[static_cast<int>(VoxelState::kUnknown)], 1000u);
+  EXPECT_GT(counts[static_cast<int>(VoxelState::kFree)], 1000u);
+  EXPECT_GT(counts[static_cast<int>(VoxelState::kOccupied)], 1000u);
 }
 
 TEST(OctreeMap, ConfigValidation)

@@ -101,6 +101,13 @@ public:
   /// @brief State of the voxel containing position (map frame, m).
   VoxelState query(const Eigen::Vector3d& position) const;
 
+  /**
+   * @brief States of the voxels containing positions (map frame, m), one per position, each the
+   * same as query(position). One descent over the positions in Morton order, resuming each from
+   * the deepest node it shares with the one before, instead of one from the root per position.
+   */
+  std::vector<VoxelState> query(const PointList& positions) const;
+
   /// @brief Centres of occupied leaf voxels [m] (one per leaf; coarse leaves give their centre).
   PointList occupiedCenters() const;
 

@@ -3,6 +3,7 @@
 
 // Private helper of sparse_nav_core (not installed): a uniform-grid hash of 3D points.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -37,28 +38,49 @@ class SpatialHash3
 public:
   SpatialHash3(double cell, const PointList& points) : inv_(1.0 / cell)
   {
-    // Cell ids in open addressing (linear probing, at most half full): std::unordered_map's
-    // bucket and node lookups were most of the density filter's time, 27 of them per cell.
-    std::size_t capacity = 16;
-    int log2_capacity = 4;
-    while (capacity < 2 * points.size())
-    {
-      capacity *= 2;
-      ++log2_capacity;
-    }
-    slots_.assign(capacity, kEmpty);
-    shift_ = 64 - log2_capacity;
-    std::vector<std::uint32_t> cell_of(points.size());
+    std::vector<CellKey> point_keys(points.size());
+    CellKey lo{ 0, 0, 0 }, hi{ -1, -1, -1 };
     for (std::size_t i = 0; i < points.size(); ++i)
     {
       const CellKey k = key(points[i]);
-      const std::size_t s = findSlot(k);
-      if (slots_[s] == kEmpty)
+      point_keys[i] = k;
+      lo = i == 0 ? k : CellKey{ std::min(lo.x, k.x), std::min(lo.y, k.y), std::min(lo.z, k.z) };
+      hi = i == 0 ? k : CellKey{ std::max(hi.x, k.x), std::max(hi.y, k.y), std::max(hi.z, k.z) };
+    }
+    // A room-sized cloud spans few enough cells for a dense table of cell ids over its box; the
+    // 27 lookups per cell are then plain indexing instead of hashed probes (most of the density
+    // filter's time). Otherwise cell ids go in open addressing (linear probing, at most half full).
+    const double box_cells = (static_cast<double>(hi.x - lo.x) + 1) * (static_cast<double>(hi.y - lo.y) + 1) *
+                             (static_cast<double>(hi.z - lo.z) + 1);
+    if (!points.empty() && box_cells <= std::max(8.0 * static_cast<double>(points.size()), 65536.0))
+    {
+      box_lo_ = lo;
+      box_size_ = CellKey{ hi.x - lo.x + 1, hi.y - lo.y + 1, hi.z - lo.z + 1 };
+      box_ids_.assign(static_cast<std::size_t>(box_cells), kEmpty);
+    }
+    else
+    {
+      std::size_t capacity = 16;
+      int log2_capacity = 4;
+      while (capacity < 2 * points.size())
       {
-        slots_[s] = static_cast<std::uint32_t>(keys_.size());
+        capacity *= 2;
+        ++log2_capacity;
+      }
+      slots_.assign(capacity, kEmpty);
+      shift_ = 64 - log2_capacity;
+    }
+    std::vector<std::uint32_t> cell_of(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i)
+    {
+      const CellKey& k = point_keys[i];
+      std::uint32_t& id = box_ids_.empty() ? slots_[findSlot(k)] : box_ids_[boxIndex(k)];
+      if (id == kEmpty)
+      {
+        id = static_cast<std::uint32_t>(keys_.size());
         keys_.push_back(k);
       }
-      cell_of[i] = slots_[s];
+      cell_of[i] = id;
     }
     start_.assign(keys_.size() + 1, 0);
     for (std::uint32_t c : cell_of)
@@ -179,13 +201,33 @@ private:
   /// The id of the cell with key k, or kEmpty when no point lies in it.
   std::uint32_t cellId(const CellKey& k) const
   {
-    return slots_[findSlot(k)];
+    if (box_ids_.empty())
+    {
+      return slots_[findSlot(k)];
+    }
+    const std::uint64_t dx = static_cast<std::uint64_t>(k.x - box_lo_.x), dy = static_cast<std::uint64_t>(k.y - box_lo_.y),
+                        dz = static_cast<std::uint64_t>(k.z - box_lo_.z);
+    if (dx >= static_cast<std::uint64_t>(box_size_.x) || dy >= static_cast<std::uint64_t>(box_size_.y) ||
+        dz >= static_cast<std::uint64_t>(box_size_.z))
+    {
+      return kEmpty;
+    }
+    return box_ids_[boxIndex(k)];
+  }
+
+  /// Index of k in box_ids_; k inside the box.
+  std::size_t boxIndex(const CellKey& k) const
+  {
+    return static_cast<std::size_t>(((k.z - box_lo_.z) * box_size_.y + (k.y - box_lo_.y)) * box_size_.x +
+                                    (k.x - box_lo_.x));
   }
 
   static constexpr std::uint32_t kEmpty = 0xFFFFFFFFu;
   double inv_;
   int shift_ = 0;
-  std::vector<std::uint32_t> slots_;  // cell id per slot, or kEmpty
+  std::vector<std::uint32_t> slots_;  // cell id per slot, or kEmpty (hashed mode)
+  CellKey box_lo_{ 0, 0, 0 }, box_size_{ 0, 0, 0 };
+  std::vector<std::uint32_t> box_ids_;  // cell id per cell of the points' box, or kEmpty (dense mode)
   std::vector<std::uint32_t> start_;
   std::vector<std::uint32_t> items_;
   std::vector<CellKey> keys_;  // per cell id

@@ -218,6 +218,29 @@ TEST(DensityFilter, RadiusOutlierMatchesPclOnClustersSpreadOverThousandsOfMetres
   }
 }
 
+TEST(DensityFilter, RadiusOutlierMatchesPclInASmallBoxOfCells)
+{
+  // Uniform points in a 1.5 m cube at about the neighbour count's density: the filter indexes
+  // its cells densely over the box, and a third of the cells lie on the box's faces.
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<float> u(-0.7f, 0.8f);
+  PointList pts;
+  for (int i = 0; i < 170; ++i)
+  {
+    pts.emplace_back(u(rng), u(rng), u(rng));
+  }
+  const DensityFilterConfig cfg;
+  const PointList ours = DensityFilter(cfg).apply(pts);
+  const PointList kept = pclRadiusOutlierKept(pts, cfg);
+  ASSERT_EQ(ours.size(), kept.size());
+  EXPECT_GT(ours.size(), pts.size() / 10);
+  EXPECT_LT(ours.size(), 9 * pts.size() / 10);
+  for (std::size_t i = 0; i < ours.size(); ++i)
+  {
+    EXPECT_EQ(ours[i], kept[i]) << i;
+  }
+}
+
 TEST(DensityFilter, IpclOnAHundredThousandPointsKeepsClustersAndDropsStrays)
 {
   // Sparse background, a dense cluster, and strays far from everything: at this size the filter

@@ -296,8 +296,11 @@ public:
       {
         ++level;
       }
-      visitCube(Cell(lo_.x() >> level << level, lo_.y() >> level << level, lo_.z() >> level << level), level, bits,
-                rows, visit);
+      const Cell corner(lo_.x() >> level << level, lo_.y() >> level << level, lo_.z() >> level << level);
+      visitCube(corner,
+                mortonCode(static_cast<std::uint32_t>(corner.x()), static_cast<std::uint32_t>(corner.y()),
+                           static_cast<std::uint32_t>(corner.z())),
+                level, bits, rows, visit);
       return;
     }
     std::vector<std::uint64_t> codes;
@@ -333,10 +336,12 @@ private:
   }
   /// The cells marked exactly `bits` in the box and in the aligned cube of edge 2^level at corner,
   /// in Morton order (a cube's children in Morton order: x is the lowest bit of the child index).
-  /// rows: forEachWithBits' summed-area table of the rows holding such cells.
+  /// code: the corner's Morton code, whose low 3 * level bits are 0 (an aligned corner), so that
+  /// child i's corner has code | i << 3 * (level - 1). rows: forEachWithBits' summed-area table of
+  /// the rows holding such cells.
   template <typename Visit>
-  void visitCube(const Cell& corner, int level, std::uint8_t bits, const std::vector<std::uint32_t>& rows,
-                 Visit& visit) const
+  void visitCube(const Cell& corner, std::uint64_t code, int level, std::uint8_t bits,
+                 const std::vector<std::uint32_t>& rows, Visit& visit) const
   {
     const Cell d = corner - lo_;
     const int edge = 1 << level;
@@ -358,8 +363,7 @@ private:
         const Cell c(corner.x() + (i & 1), corner.y() + ((i >> 1) & 1), corner.z() + (i >> 2));
         if (inBox(c) && dense_[index(c)] == bits)
         {
-          visit(mortonCode(static_cast<std::uint32_t>(c.x()), static_cast<std::uint32_t>(c.y()),
-                           static_cast<std::uint32_t>(c.z())));
+          visit(code | static_cast<std::uint64_t>(i));
         }
       }
       return;
@@ -368,7 +372,7 @@ private:
     for (int i = 0; i < 8; ++i)
     {
       visitCube(Cell(corner.x() + (i & 1) * half, corner.y() + ((i >> 1) & 1) * half, corner.z() + (i >> 2) * half),
-                level - 1, bits, rows, visit);
+                code | static_cast<std::uint64_t>(i) << (3 * (level - 1)), level - 1, bits, rows, visit);
     }
   }
   Cell lo_, size_;

@@ -562,12 +562,25 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
     e.key = tree_->coordToKey(p.x(), p.y(), p.z());
     e.cell = cellOf(e.key);
     e.origin = o;
-    const std::uint64_t packed = (static_cast<std::uint64_t>(e.key[0]) << 32) |
-                                 (static_cast<std::uint64_t>(e.key[1]) << 16) | e.key[2];
-    e.is_new = inserted_.insert(packed);
+    e.is_new = false;
     endpoints.push_back(e);
     lo = lo.min(e.cell);
     hi = hi.max(e.cell);
+  }
+  // The seen-voxel lookups, in the same order, with the slot of the lookup kAhead later fetched
+  // meanwhile: the table (megabytes) is probed at random, and each probe otherwise waited on a
+  // cache miss (~4 ms of 10^5 lookups).
+  constexpr std::size_t kAhead = 16;
+  auto packKey = [](const octomap::OcTreeKey& k) {
+    return (static_cast<std::uint64_t>(k[0]) << 32) | (static_cast<std::uint64_t>(k[1]) << 16) | k[2];
+  };
+  for (std::size_t i = 0; i < endpoints.size(); ++i)
+  {
+    if (i + kAhead < endpoints.size())
+    {
+      inserted_.prefetch(packKey(endpoints[i + kAhead].key));
+    }
+    endpoints[i].is_new = inserted_.insert(packKey(endpoints[i].key));
   }
   stats.n_inserted = endpoints.size();
   if (endpoints.empty())

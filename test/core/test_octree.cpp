@@ -315,11 +315,13 @@ TEST(FlatKeySet, AgreesWithStdUnorderedSet)
   sparse_nav::FlatKeySet set;
   std::unordered_set<std::uint64_t> reference;
   std::mt19937_64 rng(9);
+  set.prefetch(42);
   EXPECT_FALSE(set.contains(42));
   for (int i = 0; i < 20000; ++i)
   {
     // Few distinct keys, so that repeats are common, plus the largest storable key.
     const std::uint64_t key = i == 7 ? sparse_nav::FlatKeySet::kEmptyKey - 1 : rng() % 5000 * 0x10001ULL;
+    set.prefetch(key ^ 1);  // a hint only: the set must not change
     EXPECT_EQ(set.insert(key), reference.insert(key).second) << i;
     if (i == 10000)
     {

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "sparse_nav/core/flat_key_set.h"
 #include "sparse_nav/core/types.h"
 
 namespace sparse_nav
@@ -60,15 +61,7 @@ public:
     }
     else
     {
-      std::size_t capacity = 16;
-      int log2_capacity = 4;
-      while (capacity < 2 * points.size())
-      {
-        capacity *= 2;
-        ++log2_capacity;
-      }
-      slots_.assign(capacity, kEmpty);
-      shift_ = 64 - log2_capacity;
+      slots_.assign(openAddressingSlots(2 * points.size(), shift_), kEmpty);
     }
     std::vector<std::uint32_t> cell_of(points.size());
     for (std::size_t i = 0; i < points.size(); ++i)
@@ -181,10 +174,9 @@ private:
     }
   }
 
-  /// The slot a key's probe starts at: the top bits of a Fibonacci-scrambled CellKeyHash.
   std::size_t slotOf(const CellKey& k) const
   {
-    return static_cast<std::size_t>((static_cast<std::uint64_t>(CellKeyHash()(k)) * 0x9E3779B97F4A7C15ULL) >> shift_);
+    return fibonacciSlot(static_cast<std::uint64_t>(CellKeyHash()(k)), shift_);
   }
 
   /// The slot holding key k, or the empty slot where its probe ends (where k would go).

@@ -7,6 +7,27 @@
 
 namespace sparse_nav
 {
+/// @brief Slots of an open-addressing table for at least min_slots: the smallest power of two
+/// >= min_slots and >= 16; shift is set to 64 - log2(slots), for fibonacciSlot.
+inline std::size_t openAddressingSlots(std::size_t min_slots, int& shift)
+{
+  std::size_t capacity = 16;
+  int log2_capacity = 4;
+  while (capacity < min_slots)
+  {
+    capacity *= 2;
+    ++log2_capacity;
+  }
+  shift = 64 - log2_capacity;
+  return capacity;
+}
+
+/// @brief The slot a probe for hash starts at: the top bits of its Fibonacci scramble.
+inline std::size_t fibonacciSlot(std::uint64_t hash, int shift)
+{
+  return static_cast<std::size_t>((hash * 0x9E3779B97F4A7C15ULL) >> shift);
+}
+
 /**
  * @brief A set of 64-bit keys in one flat array (open addressing, linear probing, at most half
  * full). Every key but kEmptyKey can be stored.
@@ -85,25 +106,13 @@ public:
   }
 
 private:
-  /// The slot a key's probe starts at: the top bits of a Fibonacci hash.
-  std::size_t slotOf(std::uint64_t key) const
-  {
-    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ULL) >> shift_);
-  }
+  std::size_t slotOf(std::uint64_t key) const { return fibonacciSlot(key, shift_); }
 
-  /// Rehashes into the smallest power of two >= min_slots (and >= 16).
+  /// Rehashes into openAddressingSlots(min_slots) slots.
   void grow(std::size_t min_slots)
   {
-    std::size_t capacity = 16;
-    int log2_capacity = 4;
-    while (capacity < min_slots)
-    {
-      capacity *= 2;
-      ++log2_capacity;
-    }
-    std::vector<std::uint64_t> old(capacity, kEmptyKey);
+    std::vector<std::uint64_t> old(openAddressingSlots(min_slots, shift_), kEmptyKey);
     old.swap(slots_);
-    shift_ = 64 - log2_capacity;
     size_ = 0;
     for (std::uint64_t key : old)
     {

@@ -4,7 +4,6 @@
 #include <cmath>
 #include <exception>
 #include <fstream>
-#include <functional>
 #include <iterator>
 #include <limits>
 #include <sstream>
@@ -313,7 +312,7 @@ public:
                                    static_cast<std::uint32_t>(kv.first & 0xffff)));
       }
     }
-    std::sort(codes.begin(), codes.end());
+    radixSort(codes);
     for (const std::uint64_t code : codes)
     {
       visit(code);

@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "bresenham.h"
 #include "radix_sort.h"
 
 namespace sparse_nav
@@ -24,28 +25,6 @@ std::int64_t floorDiv(std::int64_t a, std::int64_t b)
     --q;
   }
   return q;
-}
-
-/// Integer Bresenham over every cell from (x0, y0) to (x1, y1), both included: max(|dx|, |dy|) + 1
-/// cells. The steps are chosen without branches (a branch on them mispredicts along most lines).
-template <typename Visit>
-void bresenham(int x0, int y0, int x1, int y1, Visit visit)
-{
-  const int dx = std::abs(x1 - x0);
-  const int dy = -std::abs(y1 - y0);
-  const int sx = x0 < x1 ? 1 : -1;
-  const int sy = y0 < y1 ? 1 : -1;
-  int err = dx + dy;
-  for (int n = std::max(dx, -dy); n >= 0; --n)
-  {
-    visit(x0, y0);
-    const int e2 = 2 * err;
-    const bool step_x = e2 >= dy;
-    const bool step_y = e2 <= dx;
-    err += (step_x ? dy : 0) + (step_y ? dx : 0);
-    x0 += step_x ? sx : 0;
-    y0 += step_y ? sy : 0;
-  }
 }
 
 /// Sorts rays (x0, y0, x1, y1 lexicographic) and drops repeats. Rays within 65536 cells of each
@@ -156,6 +135,10 @@ void GridBuilderConfig::validate() const
   if (max_cells < 1)
   {
     throw std::invalid_argument("GridBuilderConfig: max_cells must be >= 1");
+  }
+  if (clear_segment_min_rays < 0)
+  {
+    throw std::invalid_argument("GridBuilderConfig: clear_segment_min_rays must be >= 0");
   }
   alpha.validate();
 }
@@ -477,7 +460,7 @@ void GridBuilder::recomputeWindow(const Window& window, const std::vector<std::u
   const double res = config_.resolution_m;
   // Obstacle cell centres inside the window, in window pixel coordinates (one per cell).
   PointList2D points;
-  cv::Mat occupied = cv::Mat::zeros(window.rows, window.cols, CV_8UC1);
+  cv::Mat hit = cv::Mat::zeros(window.rows, window.cols, CV_8UC1);
   for (int ty = window.row0 / tile; ty < (window.row0 + window.rows) / tile; ++ty)
   {
     for (int tx = window.col0 / tile; tx < (window.col0 + window.cols) / tile; ++tx)
@@ -487,7 +470,7 @@ void GridBuilder::recomputeWindow(const Window& window, const std::vector<std::u
         const int col = tx * tile + static_cast<int>(id % tile) - window.col0;
         const int row = ty * tile + static_cast<int>(id / tile) - window.row0;
         points.emplace_back(col, row);
-        occupied.at<std::uint8_t>(row, col) = 1;
+        hit.at<std::uint8_t>(row, col) = 1;
       }
     }
   }
@@ -495,6 +478,10 @@ void GridBuilder::recomputeWindow(const Window& window, const std::vector<std::u
   auto toCv = [](const Eigen::Vector2d& p) {
     return cv::Point(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
   };
+  // Cells the shape covers apart from the cells with points: kArea inside or on the rings, else
+  // kSegment on a singular edge (two points joined with nothing between them).
+  constexpr std::uint8_t kArea = 1, kSegment = 2;
+  cv::Mat filled = cv::Mat::zeros(window.rows, window.cols, CV_8UC1);
   std::vector<std::vector<cv::Point>> polygons;
   polygons.reserve(shape.rings.size());
   for (const auto& ring : shape.rings)
@@ -509,29 +496,34 @@ void GridBuilder::recomputeWindow(const Window& window, const std::vector<std::u
   }
   if (!polygons.empty())
   {
-    cv::fillPoly(occupied, polygons, cv::Scalar(1), cv::LINE_8);
+    cv::fillPoly(filled, polygons, cv::Scalar(kArea), cv::LINE_8);
   }
-  auto drawEdge = [&](const cv::Point& a, const cv::Point& b) {
+  auto drawEdge = [&](const cv::Point& a, const cv::Point& b, std::uint8_t mark) {
     const cv::Point p = canonicalA(a, b);
     const cv::Point q = (p == a) ? b : a;
-    bresenham(p.x, p.y, q.x, q.y, [&](int x, int y) { occupied.at<std::uint8_t>(y, x) = 1; });
+    bresenham(p.x, p.y, q.x, q.y, [&](int x, int y) {
+      std::uint8_t& m = filled.at<std::uint8_t>(y, x);
+      m = m == 0 ? mark : std::min(m, mark);
+    });
   };
   for (const auto& poly : polygons)
   {
     for (std::size_t i = 0; i < poly.size(); ++i)
     {
-      drawEdge(poly[i], poly[(i + 1) % poly.size()]);
+      drawEdge(poly[i], poly[(i + 1) % poly.size()], kArea);
     }
   }
   for (const auto& s : shape.segments)
   {
-    drawEdge(toCv(s.first), toCv(s.second));
+    drawEdge(toCv(s.first), toCv(s.second), kSegment);
   }
 
+  const std::uint32_t clear_segment = static_cast<std::uint32_t>(config_.clear_segment_min_rays);
   for (int row = 0; row < window.rows; ++row)
   {
     const int grow = window.row0 + row;
-    const std::uint8_t* occ_row = occupied.ptr<std::uint8_t>(row);
+    const std::uint8_t* hit_row = hit.ptr<std::uint8_t>(row);
+    const std::uint8_t* fill_row = filled.ptr<std::uint8_t>(row);
     const std::uint32_t* cover_row = ray_cover_.data() + static_cast<std::size_t>(grow) * grid_.width + window.col0;
     for (int col = 0; col < window.cols; ++col)
     {
@@ -541,7 +533,8 @@ void GridBuilder::recomputeWindow(const Window& window, const std::vector<std::u
         continue;
       }
       std::int8_t v = OccupancyGrid::kUnknown;
-      if (occ_row[col])
+      if (hit_row[col] || fill_row[col] == kArea ||
+          (fill_row[col] == kSegment && (clear_segment == 0 || cover_row[col] < clear_segment)))
       {
         v = OccupancyGrid::kOccupied;
       }

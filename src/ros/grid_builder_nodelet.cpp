@@ -24,6 +24,7 @@ void GridBuilderNodelet::onInit()
   loadParam(pnh, "alpha_m", config_.alpha.alpha_m);
   loadParam(pnh, "auto_alpha", config_.alpha.auto_alpha);
   loadParam(pnh, "max_auto_alpha_m", config_.alpha.max_auto_alpha_m);
+  loadParam(pnh, "clear_segment_min_rays", config_.clear_segment_min_rays);
   loadParam(pnh, "map_frame", map_frame_);
   loadParam(pnh, "camera_frame", camera_frame_);
   loadParam(pnh, "trajectory_spacing_m", trajectory_spacing_m_);

@@ -418,6 +418,58 @@ TEST(GridBuilder, RepeatedObstacleCellsCountOnceOverTheWholeAcceptedRange)
   EXPECT_NE(u.status.find(span), std::string::npos) << u.status << " lacks " << span;
 }
 
+TEST(GridBuilder, RaysCrossingALineBetweenTwoPointsKeepItOpenButNotAnArea)
+{
+  // Two walls two cells thick, their ends 0.35 m apart: alpha 0.2 m joins the ends by singular
+  // edges (the triangles across the gap are too large). Rays pass through the gap.
+  PointList2D pts;
+  for (int i = 0; i <= 10; ++i)
+  {
+    const double y = i % 2 ? 0.075 : 0.025;
+    pts.emplace_back(0.025 + 0.1 * i, y);
+    pts.emplace_back(1.375 + 0.1 * i, y);
+  }
+  std::vector<FreeRay> rays;
+  for (int k = 0; k < 5; ++k)
+  {
+    const double x = 1.075 + 0.05 * k;  // cell centres: two rays through each gap cell
+    rays.push_back(FreeRay{ Eigen::Vector2d(x, 1.0), Eigen::Vector2d(x, -1.0) });
+    rays.push_back(FreeRay{ Eigen::Vector2d(x + 0.01, 1.5), Eigen::Vector2d(x - 0.01, -1.5) });
+  }
+  GridBuilder builder;  // clear_segment_min_rays 2
+  ASSERT_TRUE(builder.update(pts, rays).ok);
+  EXPECT_EQ(valueAt(builder.grid(), 1.225, 0.025), OccupancyGrid::kFree);
+  EXPECT_EQ(valueAt(builder.grid(), 0.525, 0.025), OccupancyGrid::kOccupied) << "the wall stays";
+  GridBuilderConfig off;
+  off.clear_segment_min_rays = 0;
+  GridBuilder closed(off);
+  ASSERT_TRUE(closed.update(pts, rays).ok);
+  EXPECT_EQ(valueAt(closed.grid(), 1.225, 0.025), OccupancyGrid::kOccupied);
+
+  // The outline of a 0.6 m square (alpha 0.4 m fills it): rays across its inside leave it
+  // occupied, as they do inside a noisy wall band, where rays reach the band's far points.
+  PointList2D square;
+  for (int i = 0; i < 6; ++i)
+  {
+    const double t = 0.025 + 0.1 * i;
+    square.emplace_back(t, 0.025);
+    square.emplace_back(t, 0.525);
+    square.emplace_back(0.025, t);
+    square.emplace_back(0.525, t);
+  }
+  std::vector<FreeRay> across;
+  for (int k = 0; k < 5; ++k)
+  {
+    across.push_back(FreeRay{ Eigen::Vector2d(0.075 + 0.1 * k, 1.5), Eigen::Vector2d(0.275, 0.275) });
+  }
+  GridBuilderConfig wide;
+  wide.alpha.alpha_m = 0.4;
+  GridBuilder area(wide);
+  ASSERT_TRUE(area.update(square, across).ok);
+  EXPECT_EQ(valueAt(area.grid(), 0.3, 0.3), OccupancyGrid::kOccupied);
+  EXPECT_EQ(valueAt(area.grid(), 0.275, 0.4), OccupancyGrid::kOccupied);
+}
+
 TEST(GridBuilder, EmptyInputGivesAnEmptyGridWithAStatus)
 {
   GridBuilder builder;
@@ -445,6 +497,9 @@ TEST(GridBuilder, ConfigValidation)
   EXPECT_THROW(GridBuilder{ cfg }, std::invalid_argument);
   cfg = GridBuilderConfig();
   cfg.tile_size_cells = 1;
+  EXPECT_THROW(cfg.validate(), std::invalid_argument);
+  cfg = GridBuilderConfig();
+  cfg.clear_segment_min_rays = -1;
   EXPECT_THROW(cfg.validate(), std::invalid_argument);
 }
 

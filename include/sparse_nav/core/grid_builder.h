@@ -63,6 +63,11 @@ struct GridBuilderConfig
   double padding_m = 0.5;      ///< free margin around the data when the grid is sized [m]
   int max_cells = 100000000;   ///< refuse grids with more cells than this (huge extents; 5 bytes per cell)
   AlphaShapeConfig alpha;
+  /// A cell of a singular alpha edge (two points joined with no area between them) that at least
+  /// this many distinct free rays cross stays free: rays seen through a gap beat a line drawn
+  /// across it. Ring edges and interiors stay occupied whatever crosses them (noisy wall bands
+  /// are crossed by rays to their own far points). 0: never.
+  int clear_segment_min_rays = 2;
 
   /// @brief Throws std::invalid_argument when a value is out of range.
   void validate() const;
@@ -89,7 +94,8 @@ struct GridUpdate
  * Obstacles are reduced to one point per cell; CGAL alpha shapes over them are rasterised by
  * scanline fill (cv::fillPoly) and lines into occupied cells; free rays are rasterised (integer
  * Bresenham) into a per-cell count of the rays crossing it, and cells with a count are free; the
- * rest is unknown. The grid is split in tiles; an update compares the obstacle cells per tile and
+ * rest is unknown, and the cells of a singular alpha edge that rays cross are free
+ * (clear_segment_min_rays). The grid is split in tiles; an update compares the obstacle cells per tile and
  * the set of rays with the previous update, subtracts the removed rays from the counts and adds the
  * new ones, and recomputes only tiles within reach of a change (alpha shapes reach 2 * alpha: one
  * tile of margin at the defaults), giving the same cells as a full rebuild. The grid only grows:

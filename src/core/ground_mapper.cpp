@@ -1,10 +1,13 @@
 #include "sparse_nav/core/ground_mapper.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
+
+#include "bresenham.h"
 
 namespace sparse_nav
 {
@@ -26,6 +29,84 @@ private:
   std::map<std::string, double>& out_;
   Clock::time_point last_;
 };
+
+/// The candidates (indices into xy) whose cell at least min_rays rays pass through at their height.
+/// Ray i runs from its camera (cam_xy, cam_h) to point i (xy, h); its own end cell does not count.
+/// Returns false, marking nothing, when the candidates' cells span more than max_cells.
+bool passedThrough(const std::vector<Eigen::Vector2d>& xy, const std::vector<double>& h,
+                   const std::vector<Eigen::Vector2d>& cam_xy, const std::vector<double>& cam_h,
+                   const std::vector<std::size_t>& camera_of, const std::vector<std::size_t>& candidates,
+                   const GroundMapperConfig& config, std::vector<char>& passed)
+{
+  passed.assign(candidates.size(), 0);
+  if (candidates.empty())
+  {
+    return true;
+  }
+  const double cell = config.clear_cell_m;
+  auto cellOf = [cell](const Eigen::Vector2d& p) {
+    return Eigen::Vector2i(static_cast<int>(std::floor(p.x() / cell)), static_cast<int>(std::floor(p.y() / cell)));
+  };
+  Eigen::Vector2i lo = cellOf(xy[candidates.front()]), hi = lo;
+  for (const std::size_t i : candidates)
+  {
+    const Eigen::Vector2i c = cellOf(xy[i]);
+    lo = lo.cwiseMin(c);
+    hi = hi.cwiseMax(c);
+  }
+  const Eigen::Vector2i size = hi - lo + Eigen::Vector2i::Ones();
+  if (static_cast<double>(size.x()) * size.y() > static_cast<double>(config.clear_max_cells))
+  {
+    return false;
+  }
+  auto index = [&](const Eigen::Vector2i& c) {
+    return static_cast<std::size_t>(c.y() - lo.y()) * size.x() + static_cast<std::size_t>(c.x() - lo.x());
+  };
+  // Per cell: from the tolerance below its lowest candidate up to its highest. Only rays under an
+  // obstacle's top count against it: rays over a box, or over the near part of its top towards
+  // the far part, do not say that it is not there.
+  const double tol = config.clear_height_tolerance_m;
+  const std::size_t n_cells = static_cast<std::size_t>(size.x()) * size.y();
+  std::vector<float> z_lo(n_cells, std::numeric_limits<float>::infinity());
+  std::vector<float> z_hi(n_cells, -std::numeric_limits<float>::infinity());
+  for (const std::size_t i : candidates)
+  {
+    const std::size_t k = index(cellOf(xy[i]));
+    z_lo[k] = std::min(z_lo[k], static_cast<float>(h[i] - tol));
+    z_hi[k] = std::max(z_hi[k], static_cast<float>(h[i]));
+  }
+  std::vector<std::uint32_t> count(n_cells, 0);
+  for (std::size_t i = 0; i < xy.size(); ++i)
+  {
+    const std::size_t c = camera_of[i];
+    const Eigen::Vector2i a = cellOf(cam_xy[c]), b = cellOf(xy[i]);
+    const int steps = std::max(std::abs(b.x() - a.x()), std::abs(b.y() - a.y()));
+    if (steps == 0)
+    {
+      continue;
+    }
+    const double h0 = cam_h[c], dh = (h[i] - cam_h[c]) / steps;
+    int step = 0;
+    // Cells in the last clear_range_margin of the ray may hold the same surface as its end.
+    const int last = std::min(steps - 1, static_cast<int>(std::floor((1.0 - config.clear_range_margin) * steps)));
+    bresenham(a.x(), a.y(), b.x(), b.y(), [&](int x, int y) {
+      const int s = step++;
+      if (s > last || x < lo.x() || y < lo.y() || x > hi.x() || y > hi.y())
+      {
+        return;
+      }
+      const std::size_t k = static_cast<std::size_t>(y - lo.y()) * size.x() + static_cast<std::size_t>(x - lo.x());
+      const float z = static_cast<float>(h0 + dh * s);
+      count[k] += (z >= z_lo[k] && z <= z_hi[k]) ? 1 : 0;
+    });
+  }
+  const std::uint32_t min_rays = static_cast<std::uint32_t>(config.clear_hit_min_rays);
+  for (std::size_t j = 0; j < candidates.size(); ++j)
+  {
+    passed[j] = count[index(cellOf(xy[candidates[j]]))] >= min_rays ? 1 : 0;
+  }
+  return true;
+}
 }  // namespace
 
 void GroundMapperConfig::validate() const
@@ -33,6 +114,13 @@ void GroundMapperConfig::validate() const
   if (!std::isfinite(floor_clearance_m) || !std::isfinite(ceiling_height_m) || !(ceiling_height_m > floor_clearance_m))
   {
     throw std::invalid_argument("GroundMapperConfig: ceiling_height_m must be finite and above floor_clearance_m");
+  }
+  if (clear_hit_min_rays < 0 || !(clear_cell_m > 0.0) || !std::isfinite(clear_cell_m) ||
+      !(clear_height_tolerance_m >= 0.0) || !std::isfinite(clear_height_tolerance_m) ||
+      !(clear_range_margin >= 0.0 && clear_range_margin < 1.0))
+  {
+    throw std::invalid_argument("GroundMapperConfig: clear_hit_min_rays must be >= 0, clear_cell_m > 0, "
+                                "clear_height_tolerance_m >= 0 and clear_range_margin in [0, 1)");
   }
   floor.validate();
   density.validate();
@@ -161,6 +249,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   }
   const std::vector<VoxelState> band_states = filter ? octree_->query(band) : std::vector<VoxelState>();
   std::size_t next_band = 0;
+  std::vector<std::size_t> candidates;  // band points not proven free by the octree
   r.obstacles.reserve(points.size());
   r.rays.reserve(points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
@@ -184,7 +273,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     }
     else
     {
-      r.obstacles.push_back(out[i]);
+      candidates.push_back(i);
     }
     // The part of the ray from the nearest camera that lies inside the band, in heights.
     const double hc = cam_height[nearest[i]];
@@ -216,11 +305,40 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     r.rays.push_back(FreeRay{ (c + t0 * (p - c)).head<2>(), (c + t1 * (p - c)).head<2>() });
   }
   timer.lap("slice");
+
+  std::vector<char> passed;
+  bool counted = true;
+  if (config_.clear_hit_min_rays > 0)
+  {
+    std::vector<Eigen::Vector2d> xy(points.size()), cam_xy(r.cameras.size());
+    for (std::size_t i = 0; i < points.size(); ++i)
+    {
+      xy[i] = out[i].head<2>().cast<double>();
+    }
+    for (std::size_t c = 0; c < r.cameras.size(); ++c)
+    {
+      cam_xy[c] = r.cameras[c].head<2>();
+    }
+    counted = passedThrough(xy, heights, cam_xy, cam_height, nearest, candidates, config_, passed);
+  }
+  for (std::size_t j = 0; j < candidates.size(); ++j)
+  {
+    if (!passed.empty() && passed[j])
+    {
+      ++r.n_passed;
+    }
+    else
+    {
+      r.obstacles.push_back(out[candidates[j]]);
+    }
+  }
+  timer.lap("clear");
   r.ok = true;
-  char buf[256];
-  std::snprintf(buf, sizeof(buf), "%zu points: %zu floor band, %zu ceiling band, %zu obstacles, %zu in free space; "
-                "floor tilt %.1f deg",
-                points.size(), r.n_floor_band, r.n_ceiling_band, r.obstacles.size(), r.n_freed, plane.tilt_deg);
+  char buf[320];
+  std::snprintf(buf, sizeof(buf), "%zu points: %zu floor band, %zu ceiling band, %zu obstacles, %zu in free space, "
+                "%zu seen past%s; floor tilt %.1f deg",
+                points.size(), r.n_floor_band, r.n_ceiling_band, r.obstacles.size(), r.n_freed, r.n_passed,
+                counted ? "" : " (not counted: the cloud spans more than clear_max_cells)", plane.tilt_deg);
   r.status = buf;
   return r;
 }

@@ -64,6 +64,10 @@ void GroundMapperNodelet::onInit()
   loadParam(pnh, "free_space_resolution_m", config.octree.free_space_resolution_m);
   loadParam(pnh, "octree_max_range_m", config.octree.max_range_m);
   loadParam(pnh, "free_space_filter", config.free_space_filter);
+  loadParam(pnh, "clear_hit_min_rays", config.clear_hit_min_rays);
+  loadParam(pnh, "clear_cell_m", config.clear_cell_m);
+  loadParam(pnh, "clear_height_tolerance_m", config.clear_height_tolerance_m);
+  loadParam(pnh, "clear_range_margin", config.clear_range_margin);
   loadParam(pnh, "map_frame", map_frame_);
   loadParam(pnh, "camera_frame", camera_frame_);
   const char* home = std::getenv("HOME");

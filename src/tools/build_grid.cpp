@@ -56,6 +56,11 @@ std::string usage()
       "  --leaf M                voxel leaf size, 0 disables the voxel grid (default %g)\n"
       "  --alpha M               alpha-shape radius in metres (default %g)\n"
       "  --auto-alpha            choose alpha from the nearest-neighbour spacing\n"
+      "  --clear-hit-rays N      obstacle points whose cell N camera rays pass through at their height\n"
+      "                          are dropped, 0: never\n"
+      "                          (default %d)\n"
+      "  --clear-segment-rays N  cells of singular alpha edges that N free rays cross stay free, 0: never\n"
+      "                          (default %d)\n"
       "  --free-space-factor K   octree free space is ray-cast in voxels K times the resolution\n"
       "                          (1, 2, 4, ...; default %g)\n"
       "  --max-range M           octree rays longer than M are truncated (default: no limit)\n"
@@ -70,7 +75,7 @@ std::string usage()
       "                          with --update also \"update\": {\"stages_ms\", \"total_ms\", ..}\n",
       d.grid.resolution_m, d.ground.floor.max_tilt_deg, d.ground.floor.distance_threshold_m, d.ground.floor.max_planes,
       d.ground.floor_clearance_m, d.ground.ceiling_height_m, d.ground.density.radius_m, d.ground.density.min_neighbors,
-      d.voxel.leaf_size_m, d.grid.alpha.alpha_m, d.ground.octree.free_space_resolution_m / d.ground.octree.resolution_m);
+      d.voxel.leaf_size_m, d.grid.alpha.alpha_m, d.ground.clear_hit_min_rays, d.grid.clear_segment_min_rays, d.ground.octree.free_space_resolution_m / d.ground.octree.resolution_m);
   return buf;
 }
 
@@ -148,6 +153,7 @@ Args parseArgs(int argc, char** argv)
     {
       a.config.grid.resolution_m = number(arg, value());
       a.config.ground.octree.resolution_m = a.config.grid.resolution_m;
+      a.config.ground.clear_cell_m = a.config.grid.resolution_m;
     }
     else if (arg == "--scale")
       a.config.metres_per_unit = number(arg, value());
@@ -176,6 +182,12 @@ Args parseArgs(int argc, char** argv)
       a.config.grid.alpha.alpha_m = number(arg, value());
     else if (arg == "--auto-alpha")
       a.config.grid.alpha.auto_alpha = true;
+    else if (arg == "--clear-hit-rays")
+      a.config.ground.clear_hit_min_rays = static_cast<int>(number(arg, value()));
+    else if (arg == "--clear-height-tol")
+      a.config.ground.clear_height_tolerance_m = number(arg, value());
+    else if (arg == "--clear-segment-rays")
+      a.config.grid.clear_segment_min_rays = static_cast<int>(number(arg, value()));
     else if (arg == "--no-octree")
       a.config.ground.octree_enabled = false;
     else if (arg == "--save-octree")

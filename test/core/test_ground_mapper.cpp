@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
 #include "sparse_nav/core/grid_pipeline.h"
@@ -48,7 +49,7 @@ TEST(GroundMapper, BandsAreMeasuredFromTheFloorAndRaysStayInTheBand)
   EXPECT_TRUE(r.to_output.isApprox(Eigen::Isometry3d::Identity()));
   EXPECT_GT(r.n_floor_band, 0u);
   EXPECT_FALSE(r.floor_points.empty());
-  EXPECT_EQ(r.obstacles.size() + r.n_freed + r.n_floor_band + r.n_ceiling_band, room.size());
+  EXPECT_EQ(r.obstacles.size() + r.n_freed + r.n_passed + r.n_floor_band + r.n_ceiling_band, room.size());
   for (const auto& p : r.obstacles)
   {
     EXPECT_GE(p.z(), 0.15 - 0.03);
@@ -102,6 +103,134 @@ TEST(GroundMapper, FreeSpaceFilterDropsAStrayPointInSpaceTheRaysCrossed)
   cfg.free_space_filter = false;
   GroundMapper unfiltered(cfg);
   EXPECT_EQ(unfiltered.process(room, { camera }).n_freed, 0u);
+}
+
+namespace
+{
+bool isObstacle(const GroundMapperResult& r, const Eigen::Vector3f& p)
+{
+  for (const auto& o : r.obstacles)
+  {
+    if ((o - p).norm() < 1e-4f)
+    {
+      return true;
+    }
+  }
+  return false;
+}
+
+/// True when the straight line from a to b passes through the box [lo, hi] (sampled finely).
+bool crossesBox(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi)
+{
+  for (int k = 1; k < 400; ++k)
+  {
+    const Eigen::Vector3d p = a + (b - a) * (k / 400.0);
+    if ((p.array() > lo.array()).all() && (p.array() < hi.array()).all())
+    {
+      return true;
+    }
+  }
+  return false;
+}
+}  // namespace
+
+TEST(GroundMapper, RaysPassingUnderAStrayPointDropItButRaysOverABoxDoNot)
+{
+  GroundMapperConfig config = mapFrameConfig();
+  config.density.method = DensityMethod::kNone;  // it would take the lone stray point first
+  const Eigen::Vector3d camera(2.5, 2.0, 1.2);
+  PointList scene = sparse_nav::test::makeRoom();
+  // A wall outside, where the camera sees it through the door (x 1.0 to 1.9 m in the wall y = 0).
+  PointList outside;
+  sparse_nav::test::addWall(outside, -1.0, -1.5, 2.5, -1.5, 0.3, 2.0, 0.1);
+  for (const auto& p : outside)
+  {
+    const double t = camera.y() / (camera.y() - p.y());  // where the ray crosses y = 0
+    const double x = camera.x() + t * (p.x() - camera.x());
+    if (x > 1.05 && x < 1.85)
+    {
+      scene.push_back(p);
+    }
+  }
+  // A 0.5 m high box; the camera sees its top and the two faces towards it, not what it hides.
+  // Its points sit inside its cells, whose edges rays going past it may graze.
+  const Eigen::Vector3d box_lo(3.6, 0.8, 0.0), box_hi(4.0, 1.2, 0.5);
+  PointList visible;
+  for (const auto& p : scene)
+  {
+    if (!crossesBox(camera, p.cast<double>(), box_lo, box_hi))
+    {
+      visible.push_back(p);
+    }
+  }
+  ASSERT_LT(visible.size(), scene.size());
+  PointList box;
+  sparse_nav::test::addWall(box, 3.625, 0.825, 3.625, 1.175, 0.2, 0.5, 0.05);
+  sparse_nav::test::addWall(box, 3.625, 1.175, 3.975, 1.175, 0.2, 0.5, 0.05);
+  for (double x = 3.675; x < 4.0; x += 0.1)
+  {
+    for (double y = 0.825; y < 1.15; y += 0.1)
+    {
+      box.emplace_back(static_cast<float>(x), static_cast<float>(y), 0.5f);
+    }
+  }
+  visible.insert(visible.end(), box.begin(), box.end());
+  // Depth noise put a point into the doorway, at 1 m; rays to the wall outside pass under it.
+  const Eigen::Vector3f stray(1.45f, 0.02f, 1.0f);
+  visible.push_back(stray);
+
+  GroundMapper mapper(config);
+  const GroundMapperResult r = mapper.process(visible, { camera });
+  ASSERT_TRUE(r.ok) << r.status;
+  EXPECT_FALSE(isObstacle(r, stray)) << r.status;
+  EXPECT_GE(r.n_passed, 1u);
+  for (const auto& p : box)
+  {
+    EXPECT_TRUE(isObstacle(r, p)) << "box point " << p.transpose() << " dropped; " << r.status;
+  }
+
+  config.clear_hit_min_rays = 0;
+  GroundMapper off(config);
+  const GroundMapperResult kept = off.process(visible, { camera });
+  EXPECT_TRUE(isObstacle(kept, stray));
+  EXPECT_EQ(kept.n_passed, 0u);
+}
+
+TEST(GroundMapper, RaysNearTheirEndDoNotClearThePointsJustBeforeIt)
+{
+  // A point 0.1 m in front of the wall x = 5 and wall points right behind it, lower: the rays to
+  // them pass under it in its last 4 % (monocular depth noise makes such neighbours).
+  GroundMapperConfig config = mapFrameConfig();
+  config.density.method = DensityMethod::kNone;
+  const Eigen::Vector3d camera(2.5, 2.025, 1.2);
+  PointList scene = sparse_nav::test::makeRoom();
+  for (double z = 0.6; z < 0.95; z += 0.1)
+  {
+    scene.emplace_back(5.0f, 2.025f, static_cast<float>(z));
+  }
+  const Eigen::Vector3f front(4.9f, 2.025f, 1.0f);
+  scene.push_back(front);
+  GroundMapper mapper(config);
+  const GroundMapperResult r = mapper.process(scene, { camera });
+  ASSERT_TRUE(r.ok) << r.status;
+  EXPECT_TRUE(isObstacle(r, front)) << r.status;
+
+  config.clear_range_margin = 0.0;
+  GroundMapper no_margin(config);
+  EXPECT_FALSE(isObstacle(no_margin.process(scene, { camera }), front));
+}
+
+TEST(GroundMapper, RayClearingConfigIsValidated)
+{
+  GroundMapperConfig config;
+  config.clear_hit_min_rays = -1;
+  EXPECT_THROW(config.validate(), std::invalid_argument);
+  config = GroundMapperConfig();
+  config.clear_cell_m = 0.0;
+  EXPECT_THROW(config.validate(), std::invalid_argument);
+  config = GroundMapperConfig();
+  config.clear_range_margin = 1.0;
+  EXPECT_THROW(config.validate(), std::invalid_argument);
 }
 
 TEST(GridPipeline, IncrementalUpdateEqualsAFullRebuildOnTheSamePoints)

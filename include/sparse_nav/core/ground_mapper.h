@@ -37,6 +37,20 @@ struct GroundMapperConfig
   /// Drop obstacle points whose octree voxel the camera rays have proven free (stray points
   /// smeared into doorways by monocular depth noise). Needs the octree.
   bool free_space_filter = true;
+  /// Drop obstacle points whose x-y cell (clear_cell_m) at least this many camera rays pass
+  /// through (rays ending in the cell not counted) below the top of the cell's obstacle points and
+  /// at most clear_height_tolerance_m under their bottom: a point the camera saw past is depth
+  /// noise, such as one smeared into a doorway. Rays over a low box do not clear it. 0: off.
+  int clear_hit_min_rays = 3;
+  double clear_cell_m = 0.05;             ///< cell of that count [m]; the grid's resolution
+  double clear_height_tolerance_m = 0.4;  ///< rays this far below a cell's lowest point still count [m]
+  /// A ray counts only where at least this fraction of its length is still ahead: monocular depth
+  /// noise grows with range, so a ray to a point just behind another on a wall seen at a grazing
+  /// angle says nothing about it (0.25 keeps the walls of a hallway).
+  double clear_range_margin = 0.25;
+  /// The count runs over a dense box of cells around the obstacle points; beyond this many cells
+  /// (a cloud hundreds of metres wide) it is skipped and the status says so.
+  std::size_t clear_max_cells = 1U << 25;
 
   /// @brief Throws std::invalid_argument when a value is out of range.
   void validate() const;
@@ -59,6 +73,7 @@ struct GroundMapperResult
   std::size_t n_floor_band = 0;    ///< points below floor_clearance_m
   std::size_t n_ceiling_band = 0;  ///< points above ceiling_height_m
   std::size_t n_freed = 0;         ///< band points dropped because their voxel is free
+  std::size_t n_passed = 0;        ///< band points dropped because clear_hit_min_rays rays passed them
   OctreeInsertStats octree;
   std::map<std::string, double> stages_ms;  ///< "floor", "density", "align", "octree", "slice" [ms]
 };

@@ -2,7 +2,7 @@
 import pytest
 
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, Phase,
-                                  ScanRunner, ScanRunnerConfig, State)
+                                  ScanRunner, ScanRunnerConfig, State, take_off)
 from sparse_nav.scanning import Step
 
 
@@ -665,3 +665,33 @@ def test_losses_on_a_route_that_makes_progress_do_not_count():
         actions = losing_tracking_on_the_way(m, (x, 0.0), 1)
         assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.GOAL, (5.0, 0.0))
     assert m.conductor.phase == Phase.GO_TO_EXIT and m.conductor.exit_xy == (5.0, 0.0)
+
+
+class _Drone:
+    """Answers the Tello commands from a table; records what was sent."""
+
+    def __init__(self, **answers):
+        self.answers = answers
+        self.sent = []
+
+    def send(self, text):
+        self.sent.append(text)
+        return self.answers.get(text, "ok")
+
+
+def test_take_off_flies_on_ok_or_when_already_flying():
+    drone = _Drone()
+    assert take_off(drone.send) == (True, "")
+    assert drone.sent == ["command", "takeoff"]
+    assert take_off(_Drone(takeoff="error: already flying").send) == (True, "")
+
+
+def test_a_refused_or_unanswered_takeoff_is_not_flying_and_says_why():
+    flying, why = take_off(_Drone(takeoff="error: battery low").send)
+    assert not flying and why == "takeoff -> error: battery low"
+    flying, why = take_off(_Drone(takeoff="timeout").send)
+    assert not flying and "timeout" in why
+    drone = _Drone(command="timeout")
+    flying, why = take_off(drone.send)
+    assert not flying and why == "command -> timeout"
+    assert drone.sent == ["command"], "no takeoff without SDK mode"

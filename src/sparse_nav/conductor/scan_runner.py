@@ -87,3 +87,20 @@ class ScanRunner:
                      (last, slower, True), (step, slower, counts)]
             self.soft_fails = 0
         self._todo.extend(reversed(retry))
+
+
+def take_off(send):
+    """Sends the Tello's "command" and "takeoff" through send(text) -> answer.
+
+    Returns (flying, why): flying when both are answered "ok" or the drone already flies;
+    otherwise why names the refused command and its answer. "takeoff" is not sent when "command"
+    is refused (the drone is not in SDK mode), and a scan must not be flown on a landed drone:
+    every move would be refused.
+    """
+    answer = send("command")
+    if answer != "ok":
+        return False, f"command -> {answer}"
+    answer = send("takeoff")
+    if answer == "ok" or "already flying" in str(answer):
+        return True, ""
+    return False, f"takeoff -> {answer}"

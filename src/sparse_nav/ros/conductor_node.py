@@ -16,7 +16,7 @@ from nav_msgs.msg import OccupancyGrid
 from std_srvs.srv import Trigger, TriggerResponse
 
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, ScanRunner,
-                                  ScanRunnerConfig)
+                                  ScanRunnerConfig, take_off)
 from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
 from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
@@ -190,7 +190,12 @@ class ConductorNode:
 
     def _run_scan(self, steps, while_lost=False):
         if self.tello is not None and not self.took_off:
-            self.took_off = all(self.tello.send(c) == "ok" for c in ("command", "takeoff"))
+            self.took_off, why = take_off(self.tello.send)
+            if not self.took_off:
+                rospy.logwarn("conductor: the drone did not take off (%s): the scan is not flown", why)
+                with self.lock:
+                    self.obs.scan_failed = True
+                return
         runner = ScanRunner(steps, self.runner_config, while_lost)
         while not self.scan_stop.is_set() and not rospy.is_shutdown():
             item = runner.next_step()

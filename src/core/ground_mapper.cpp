@@ -7,8 +7,6 @@
 #include <limits>
 #include <stdexcept>
 
-#include "bresenham.h"
-
 namespace sparse_nav
 {
 namespace
@@ -32,7 +30,7 @@ private:
 
 /// The candidates (indices into xy) whose cell at least min_rays rays pass through at their height.
 /// Ray i runs from its camera (cam_xy, cam_h) to point i (xy, h); its own end cell does not count.
-/// Returns false, marking nothing, when the candidates' cells span more than max_cells.
+/// Returns false, marking nothing, when the candidates' cells span more than clear_max_cells.
 bool passedThrough(const std::vector<Eigen::Vector2d>& xy, const std::vector<double>& h,
                    const std::vector<Eigen::Vector2d>& cam_xy, const std::vector<double>& cam_h,
                    const std::vector<std::size_t>& camera_of, const std::vector<std::size_t>& candidates,
@@ -44,21 +42,28 @@ bool passedThrough(const std::vector<Eigen::Vector2d>& xy, const std::vector<dou
     return true;
   }
   const double cell = config.clear_cell_m;
+  // Cell indices stay within +-2^28, so that differences of them fit 16.16 fixed point in 64 bits.
+  constexpr double kMaxCell = 268435456.0;
+  auto inReach = [&](const Eigen::Vector2d& p) {
+    return p.allFinite() && std::abs(p.x() / cell) < kMaxCell && std::abs(p.y() / cell) < kMaxCell;
+  };
   auto cellOf = [cell](const Eigen::Vector2d& p) {
     return Eigen::Vector2i(static_cast<int>(std::floor(p.x() / cell)), static_cast<int>(std::floor(p.y() / cell)));
   };
-  Eigen::Vector2i lo = cellOf(xy[candidates.front()]), hi = lo;
+  Eigen::Array2d lo_m = xy[candidates.front()].array(), hi_m = lo_m;
   for (const std::size_t i : candidates)
   {
-    const Eigen::Vector2i c = cellOf(xy[i]);
-    lo = lo.cwiseMin(c);
-    hi = hi.cwiseMax(c);
+    lo_m = lo_m.min(xy[i].array());
+    hi_m = hi_m.max(xy[i].array());
   }
-  const Eigen::Vector2i size = hi - lo + Eigen::Vector2i::Ones();
-  if (static_cast<double>(size.x()) * size.y() > static_cast<double>(config.clear_max_cells))
+  const Eigen::Array2d span = (hi_m - lo_m) / cell + 1.0;
+  if (!inReach(lo_m.matrix()) || !inReach(hi_m.matrix()) ||
+      !(span.x() * span.y() <= static_cast<double>(config.clear_max_cells)))
   {
     return false;
   }
+  const Eigen::Vector2i lo = cellOf(lo_m.matrix()), hi = cellOf(hi_m.matrix());
+  const Eigen::Vector2i size = hi - lo + Eigen::Vector2i::Ones();
   auto index = [&](const Eigen::Vector2i& c) {
     return static_cast<std::size_t>(c.y() - lo.y()) * size.x() + static_cast<std::size_t>(c.x() - lo.x());
   };
@@ -75,30 +80,74 @@ bool passedThrough(const std::vector<Eigen::Vector2d>& xy, const std::vector<dou
     z_lo[k] = std::min(z_lo[k], static_cast<float>(h[i] - tol));
     z_hi[k] = std::max(z_hi[k], static_cast<float>(h[i]));
   }
+  // Blocks of kBlock x kBlock cells, one block of margin around the box: a block is hot when it or
+  // a neighbour holds a candidate. The next kBlock cells of a ray stay within the 3 x 3 blocks
+  // around its current cell, so a ray skips them whole from a cold block: rays spend most of
+  // their length in open space, and walking every cell of 10^5 rays cost more than the octree.
+  constexpr int kBlock = 8;  // the walk below divides by it with >> 3
+  const int bw = (size.x() + kBlock - 1) / kBlock + 2, bh = (size.y() + kBlock - 1) / kBlock + 2;
+  std::vector<char> has(static_cast<std::size_t>(bw) * bh, 0), hot(has.size(), 0);
+  for (const std::size_t i : candidates)
+  {
+    const Eigen::Vector2i c = cellOf(xy[i]) - lo;
+    has[static_cast<std::size_t>(c.y() / kBlock + 1) * bw + c.x() / kBlock + 1] = 1;
+  }
+  for (int by = 1; by < bh - 1; ++by)
+  {
+    for (int bx = 1; bx < bw - 1; ++bx)
+    {
+      if (has[static_cast<std::size_t>(by) * bw + bx])
+      {
+        for (int y = by - 1; y <= by + 1; ++y)
+        {
+          std::fill_n(hot.begin() + static_cast<std::ptrdiff_t>(y) * bw + bx - 1, 3, 1);
+        }
+      }
+    }
+  }
   std::vector<std::uint32_t> count(n_cells, 0);
   for (std::size_t i = 0; i < xy.size(); ++i)
   {
     const std::size_t c = camera_of[i];
-    const Eigen::Vector2i a = cellOf(cam_xy[c]), b = cellOf(xy[i]);
+    if (!inReach(cam_xy[c]) || !inReach(xy[i]))
+    {
+      continue;
+    }
+    const Eigen::Vector2i a = cellOf(cam_xy[c]) - lo, b = cellOf(xy[i]) - lo;
     const int steps = std::max(std::abs(b.x() - a.x()), std::abs(b.y() - a.y()));
     if (steps == 0)
     {
       continue;
     }
+    // A digital line in 16.16 fixed point, one cell per step along the major axis. Cells in the
+    // last clear_range_margin of the ray may hold the same surface as its end; the end cell is its own.
+    std::int64_t fx = (static_cast<std::int64_t>(a.x()) << 16) + (1 << 15);
+    std::int64_t fy = (static_cast<std::int64_t>(a.y()) << 16) + (1 << 15);
+    const std::int64_t dfx = (static_cast<std::int64_t>(b.x() - a.x()) << 16) / steps;
+    const std::int64_t dfy = (static_cast<std::int64_t>(b.y() - a.y()) << 16) / steps;
     const double h0 = cam_h[c], dh = (h[i] - cam_h[c]) / steps;
-    int step = 0;
-    // Cells in the last clear_range_margin of the ray may hold the same surface as its end.
     const int last = std::min(steps - 1, static_cast<int>(std::floor((1.0 - config.clear_range_margin) * steps)));
-    bresenham(a.x(), a.y(), b.x(), b.y(), [&](int x, int y) {
-      const int s = step++;
-      if (s > last || x < lo.x() || y < lo.y() || x > hi.x() || y > hi.y())
+    for (int s = 0; s <= last;)
+    {
+      const int x = static_cast<int>(fx >> 16), y = static_cast<int>(fy >> 16);  // floors
+      const int bx = (x >> 3) + 1, by = (y >> 3) + 1;
+      if (bx < 0 || by < 0 || bx >= bw || by >= bh || !hot[static_cast<std::size_t>(by) * bw + bx])
       {
-        return;
+        s += kBlock;
+        fx += kBlock * dfx;
+        fy += kBlock * dfy;
+        continue;
       }
-      const std::size_t k = static_cast<std::size_t>(y - lo.y()) * size.x() + static_cast<std::size_t>(x - lo.x());
-      const float z = static_cast<float>(h0 + dh * s);
-      count[k] += (z >= z_lo[k] && z <= z_hi[k]) ? 1 : 0;
-    });
+      if (x >= 0 && y >= 0 && x < size.x() && y < size.y())
+      {
+        const std::size_t k = static_cast<std::size_t>(y) * size.x() + static_cast<std::size_t>(x);
+        const float z = static_cast<float>(h0 + dh * s);
+        count[k] += (z >= z_lo[k] && z <= z_hi[k]) ? 1 : 0;
+      }
+      ++s;
+      fx += dfx;
+      fy += dfy;
+    }
   }
   const std::uint32_t min_rays = static_cast<std::uint32_t>(config.clear_hit_min_rays);
   for (std::size_t j = 0; j < candidates.size(); ++j)

@@ -220,6 +220,21 @@ TEST(GroundMapper, RaysNearTheirEndDoNotClearThePointsJustBeforeIt)
   EXPECT_FALSE(isObstacle(no_margin.process(scene, { camera }), front));
 }
 
+TEST(GroundMapper, ACloudTooWideForTheRayCountKeepsItsObstaclesAndSaysSo)
+{
+  GroundMapperConfig config = mapFrameConfig();
+  config.density.method = DensityMethod::kNone;
+  config.clear_max_cells = 1000;  // the room spans 100 x 80 cells
+  const PointList scene = sparse_nav::test::makeRoom();
+  const std::size_t n_room = scene.size();
+  GroundMapper mapper(config);
+  const GroundMapperResult r = mapper.process(scene, { Eigen::Vector3d(2.5, 2.0, 1.2) });
+  ASSERT_TRUE(r.ok) << r.status;
+  EXPECT_EQ(r.n_passed, 0u);
+  EXPECT_NE(r.status.find("not counted"), std::string::npos) << r.status;
+  EXPECT_GT(r.obstacles.size(), n_room / 2);
+}
+
 TEST(GroundMapper, RayClearingConfigIsValidated)
 {
   GroundMapperConfig config;

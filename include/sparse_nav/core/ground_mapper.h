@@ -81,7 +81,8 @@ struct GroundMapperResult
 /**
  * @brief The ground stage of the perception chain: floor plane, density filter, alignment, OctoMap octree with
  * free space ray-cast from the cameras, floor and ceiling bands measured from the floor plane,
- * the free-space filter of obstacle points, and the free rays inside the band.
+ * the free-space filter of obstacle points, the count of rays passing under them
+ * (clear_hit_min_rays), and the free rays inside the band.
  *
  * build_grid (through GridPipeline) and the ground_mapper nodelet both run this object, so the
  * same cloud gives the same obstacles. The octree is kept across calls; only points in voxels it

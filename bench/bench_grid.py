@@ -11,8 +11,8 @@ SLAM-like frame whose origin is the first camera, 1.2 m above the floor.
 Per cloud size, in one run:
 - ours: ``build_grid FILE --out PREFIX --up-axis z --resolution 0.05 --json``, median of 3 runs
   per stage. Its JSON includes reading the file and writing PGM/YAML/PNG; "rebuild" is the total
-  less those two, i.e. guard, density filter, voxel grid, floor, alignment, octree, alpha shapes
-  and rasterisation.
+  less those two, i.e. guard, density filter, voxel grid, floor, alignment, octree, the ray count
+  under obstacle points, alpha shapes and rasterisation.
 - seed 004: bench/seed004_grid.py on the same obstacle slice (the cloud's points between 0.15 m
   and 2.2 m above the true floor, build_grid's default band), same resolution and alpha, once,
   in a child process with a time budget; "> budget" when it does not finish in time.
@@ -83,7 +83,7 @@ WALLS = (
 )
 SHARE_WALLS, SHARE_FLOOR, SHARE_CEILING = 0.63, 0.20, 0.168   # the rest (0.2%) are outliers
 
-OUR_STAGE_ORDER = ("read", "guard", "density", "voxel", "floor", "align", "octree", "slice",
+OUR_STAGE_ORDER = ("read", "guard", "density", "voxel", "floor", "align", "octree", "slice", "clear",
                    "alpha", "raster", "grid", "write")
 # Our stages that do what the seed 004 method does (obstacle slice to grid).
 OUR_GRID_STAGES = ("slice", "alpha", "raster", "grid")

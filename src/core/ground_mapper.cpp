@@ -7,6 +7,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "radix_sort.h"
+
 namespace sparse_nav
 {
 namespace
@@ -42,8 +44,10 @@ bool passedThrough(const std::vector<Eigen::Vector2d>& xy, const std::vector<dou
     return true;
   }
   const double cell = config.clear_cell_m;
-  // Cell indices stay within +-2^28, so that differences of them fit 16.16 fixed point in 64 bits.
-  constexpr double kMaxCell = 268435456.0;
+  // Cell indices stay within +-2^26: differences of them fit 16.16 fixed point in 64 bits, and a
+  // ray's end cell relative to the box, offset by 2^27, fits 32 bits per axis of a sort key.
+  constexpr double kMaxCell = 67108864.0;
+  constexpr int kCellOffset = 1 << 27;
   auto inReach = [&](const Eigen::Vector2d& p) {
     return p.allFinite() && std::abs(p.x() / cell) < kMaxCell && std::abs(p.y() / cell) < kMaxCell;
   };
@@ -105,15 +109,40 @@ bool passedThrough(const std::vector<Eigen::Vector2d>& xy, const std::vector<dou
       }
     }
   }
-  std::vector<std::uint32_t> count(n_cells, 0);
+  // Rays from one camera to one end cell share their cells and differ only in height: walked once
+  // as a group, whose heights sorted give the count at a cell by two binary searches (a wall's
+  // cell holds points at many heights).
+  struct RayEnd
+  {
+    std::uint64_t camera, cell;
+    double h;
+  };
+  std::vector<RayEnd> ends;
+  ends.reserve(xy.size());
   for (std::size_t i = 0; i < xy.size(); ++i)
   {
-    const std::size_t c = camera_of[i];
-    if (!inReach(cam_xy[c]) || !inReach(xy[i]))
+    if (inReach(cam_xy[camera_of[i]]) && inReach(xy[i]))
     {
-      continue;
+      const Eigen::Vector2i e = cellOf(xy[i]) - lo + Eigen::Vector2i::Constant(kCellOffset);
+      ends.push_back(RayEnd{ camera_of[i], static_cast<std::uint64_t>(e.x()) << 32 | static_cast<std::uint32_t>(e.y()), h[i] });
     }
-    const Eigen::Vector2i a = cellOf(cam_xy[c]) - lo, b = cellOf(xy[i]) - lo;
+  }
+  radixSortBy(ends, [](const RayEnd& e) { return e.camera; });
+  radixSortBy(ends, [](const RayEnd& e) { return e.cell; });
+  std::vector<std::uint32_t> count(n_cells, 0);
+  std::vector<double> heights;
+  for (std::size_t g0 = 0, g1 = 0; g0 < ends.size(); g0 = g1)
+  {
+    heights.clear();
+    for (g1 = g0; g1 < ends.size() && ends[g1].camera == ends[g0].camera && ends[g1].cell == ends[g0].cell; ++g1)
+    {
+      heights.push_back(ends[g1].h);
+    }
+    std::sort(heights.begin(), heights.end());
+    const std::size_t c = ends[g0].camera;
+    const Eigen::Vector2i a = cellOf(cam_xy[c]) - lo;
+    const Eigen::Vector2i b(static_cast<int>(ends[g0].cell >> 32) - kCellOffset,
+                            static_cast<int>(ends[g0].cell & 0xffffffffu) - kCellOffset);
     const int steps = std::max(std::abs(b.x() - a.x()), std::abs(b.y() - a.y()));
     if (steps == 0)
     {
@@ -125,7 +154,7 @@ bool passedThrough(const std::vector<Eigen::Vector2d>& xy, const std::vector<dou
     std::int64_t fy = (static_cast<std::int64_t>(a.y()) << 16) + (1 << 15);
     const std::int64_t dfx = (static_cast<std::int64_t>(b.x() - a.x()) << 16) / steps;
     const std::int64_t dfy = (static_cast<std::int64_t>(b.y() - a.y()) << 16) / steps;
-    const double h0 = cam_h[c], dh = (h[i] - cam_h[c]) / steps;
+    const double h0 = cam_h[c];
     const int last = std::min(steps - 1, static_cast<int>(std::floor((1.0 - config.clear_range_margin) * steps)));
     for (int s = 0; s <= last;)
     {
@@ -141,8 +170,22 @@ bool passedThrough(const std::vector<Eigen::Vector2d>& xy, const std::vector<dou
       if (x >= 0 && y >= 0 && x < size.x() && y < size.y())
       {
         const std::size_t k = static_cast<std::size_t>(y) * size.x() + static_cast<std::size_t>(x);
-        const float z = static_cast<float>(h0 + dh * s);
-        count[k] += (z >= z_lo[k] && z <= z_hi[k]) ? 1 : 0;
+        if (z_lo[k] <= z_hi[k])
+        {
+          // At fraction f of the way, a ray to height hp is at h0 + f (hp - h0): within the cell's
+          // range for hp in [h0 + (z_lo - h0) / f, h0 + (z_hi - h0) / f].
+          if (s == 0)
+          {
+            count[k] += (h0 >= z_lo[k] && h0 <= z_hi[k]) ? static_cast<std::uint32_t>(heights.size()) : 0;
+          }
+          else
+          {
+            const double f = static_cast<double>(s) / steps;
+            const auto from = std::lower_bound(heights.begin(), heights.end(), h0 + (z_lo[k] - h0) / f);
+            const auto to = std::upper_bound(from, heights.end(), h0 + (z_hi[k] - h0) / f);
+            count[k] += static_cast<std::uint32_t>(to - from);
+          }
+        }
       }
       ++s;
       fx += dfx;

@@ -84,6 +84,10 @@ class ConductorNodeTest(unittest.TestCase):
         while rospy.Time.now().is_zero() and not rospy.is_shutdown():
             rospy.sleep(0.05)
         rospy.wait_for_service("conductor/start", timeout=60.0)
+        # The latched state reaches this subscriber some time after the service is up.
+        give_up = rospy.Time.now() + rospy.Duration(30.0)
+        while self._phase() is None and rospy.Time.now() < give_up and not rospy.is_shutdown():
+            rospy.sleep(0.1)
         self.assertEqual(self._phase(), "waiting", "the conductor waits for ~start")
         self.assertTrue(rospy.ServiceProxy("conductor/start", Trigger)().success)
         while (self._phase() not in ("done", "gave_up") and not rospy.is_shutdown()

@@ -10,7 +10,6 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "bresenham.h"
 #include "radix_sort.h"
 
 namespace sparse_nav
@@ -25,6 +24,28 @@ std::int64_t floorDiv(std::int64_t a, std::int64_t b)
     --q;
   }
   return q;
+}
+
+/// Integer Bresenham over every cell from (x0, y0) to (x1, y1), both included: max(|dx|, |dy|) + 1
+/// cells. The steps are chosen without branches (a branch on them mispredicts along most lines).
+template <typename Visit>
+void bresenham(int x0, int y0, int x1, int y1, Visit visit)
+{
+  const int dx = std::abs(x1 - x0);
+  const int dy = -std::abs(y1 - y0);
+  const int sx = x0 < x1 ? 1 : -1;
+  const int sy = y0 < y1 ? 1 : -1;
+  int err = dx + dy;
+  for (int n = std::max(dx, -dy); n >= 0; --n)
+  {
+    visit(x0, y0);
+    const int e2 = 2 * err;
+    const bool step_x = e2 >= dy;
+    const bool step_y = e2 <= dx;
+    err += (step_x ? dy : 0) + (step_y ? dx : 0);
+    x0 += step_x ? sx : 0;
+    y0 += step_y ? sy : 0;
+  }
 }
 
 /// Sorts rays (x0, y0, x1, y1 lexicographic) and drops repeats. Rays within 65536 cells of each

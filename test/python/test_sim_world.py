@@ -64,10 +64,8 @@ def test_shipped_world_loads_and_is_valid(name):
     assert xmin < x < xmax and ymin < y < ymax
     assert segment_distances(np.array([x, y]), world.obstacle_segments()[0]).min() >= 0.3
     for ex in world.exits:
-        gaps = [g for g in world.door_gaps if g[4]]
-        d = min(segment_distances(np.array([ex["x"], ex["y"]]), np.array([g[:4]]))[0]
-                for g in gaps)
-        assert d <= 0.3
+        gap = world.exit_gap(ex)
+        assert segment_distances(np.array([ex["x"], ex["y"]]), np.array([gap]))[0] <= 0.3
         assert 0.7 <= ex["width_m"] <= 1.3
     pts = world.features(np.random.default_rng(0))
     assert pts.shape[1] == 3 and len(pts) > 1000
@@ -78,6 +76,8 @@ def test_shipped_world_specifics():
     one = load_world("one_room")
     x0, y0, x1, y1 = one.bounds()
     assert one.ceiling_height_m == 2.5 and len(one.exits) == 1
+    # The 0.9 m gap in the recess end wall.
+    assert np.allclose(sorted(one.exit_gap(one.exits[0])), sorted((5.95, 5.8, 5.05, 5.8)))
     hall = load_world("large_hall")
     hx0, hy0, hx1, hy1 = hall.bounds()
     assert hx1 - hx0 >= 40 and hy1 - hy0 >= 30 and hall.ceiling_height_m == 4.0

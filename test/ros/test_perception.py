@@ -53,17 +53,27 @@ def best_small_alignment(occupied_xy, segments, centre, max_deg=8.0, max_m=0.6):
     return lambda p: (p - centre) @ np.array([[c, s], [-s, c]]) + centre + (dx, dy)
 
 
-def passable_through_door(grid, xy, room, start, door, target, reach_m=1.0):
-    """True when non-occupied cells connect start to target within the room or near the door.
+def passable_through_doorway(grid, xy, room, start, gap, reach_m=1.0, beyond_m=0.4):
+    """True when non-occupied cells lead from start through the door gap to beyond it.
 
-    Cells are limited to the true room and a disc of reach_m around the door, so a path can only
-    leave the room through that door, not around the building through some other gap.
+    gap is the door's (x1, y1, x2, y2) in the wall. Cells are limited to the true room and the
+    doorway: the strip as wide as the gap reaching reach_m to either side of the wall, so a path
+    can only leave the room through the door opening. The goal is any such strip cell at least
+    beyond_m outside the wall: the door is open when one can walk through it, whichever line one
+    takes (a fixed target point beside the jamb would judge the jamb's noise, not the door).
     """
+    a, b = np.asarray(gap[:2], dtype=float), np.asarray(gap[2:4], dtype=float)
+    middle, width_m = (a + b) / 2, np.linalg.norm(b - a)
+    along = (b - a) / width_m
+    normal = np.array([-along[1], along[0]])
+    if normal @ (np.asarray(start) - middle) > 0:
+        normal = -normal  # outward: away from the room
+    along_m, out_m = (xy - middle) @ along, (xy - middle) @ normal
+    doorway = (np.abs(along_m) <= width_m / 2) & (np.abs(out_m) <= reach_m)
     width, height = grid.info.width, grid.info.height
-    allowed = (np.asarray(grid.data) != 100) & (room | (np.hypot(*(xy - door).T) < reach_m))
-    allowed = allowed.reshape(height, width)
+    allowed = ((np.asarray(grid.data) != 100) & (room | doorway)).reshape(height, width)
+    goal = (doorway & ~room & (out_m >= beyond_m)).reshape(height, width)
     first = int(np.argmin(np.hypot(*(xy - start).T)))
-    goal = int(np.argmin(np.hypot(*(xy - target).T)))
     if not allowed.flat[first]:
         return False
     seen = np.zeros_like(allowed)
@@ -71,7 +81,7 @@ def passable_through_door(grid, xy, room, start, door, target, reach_m=1.0):
     queue = collections.deque([divmod(first, width)])
     while queue:
         row, col = queue.popleft()
-        if row * width + col == goal:
+        if goal[row, col]:
             return True
         for r, c in ((row + 1, col), (row - 1, col), (row, col + 1), (row, col - 1)):
             if 0 <= r < height and 0 <= c < width and allowed[r, c] and not seen[r, c]:
@@ -226,9 +236,8 @@ class PerceptionTest(unittest.TestCase):
         room = ((xy[:, 0] > xmin) & (xy[:, 0] < xmax) & (xy[:, 1] > ymin) & (xy[:, 1] < ymax))
         centre = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2])
         for exit_ in self.world.exits:
-            door = np.array([exit_["x"], exit_["y"]])
-            outward = (door - centre) / np.linalg.norm(door - centre)
-            self.assertTrue(passable_through_door(grid, xy, room, centre, door, door + 0.6 * outward),
+            gap = self.world.exit_gap(exit_)
+            self.assertTrue(passable_through_doorway(grid, xy, room, centre, gap),
                             f"the door at ({exit_['x']}, {exit_['y']}) stays open")
 
 

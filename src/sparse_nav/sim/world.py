@@ -133,6 +133,14 @@ class World:
         heights = np.repeat([b.height_m for b in self.boxes], 4)
         return segs, heights
 
+    def exit_gap(self, exit_):
+        """The door gap (x1, y1, x2, y2) in metres of a closed outline nearest to an exit dict."""
+        outer = [g[:4] for g in self.door_gaps if g[4]]
+        if not outer:
+            raise WorldError(f"world {self.name}: no door gap in a closed outline")
+        centre = np.array([exit_["x"], exit_["y"]])
+        return min(outer, key=lambda g: _point_segment_distance(centre, np.array(g)))
+
     def bounds(self):
         """Axis-aligned bounds (xmin, ymin, xmax, ymax) in metres of walls and boxes."""
         pts = [self.wall_segments().reshape(-1, 2)]

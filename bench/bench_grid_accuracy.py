@@ -7,8 +7,9 @@ measure the grid pipeline, not the scale estimate), goes through build_grid. Rep
 - IoU of occupied cells with the true walls and furniture after a one-cell dilation of both,
   within the observed part of the grid, and the precision (occupied cells within 0.3 m of a true
   obstacle) and recall (observed true obstacle cells covered) behind it;
-- whether each true exit is passable: non-occupied cells connect the start to a point 0.6 m
-  beyond the door, through observed free space or the door's neighbourhood;
+- whether each true exit is passable: observed free cells, or non-occupied ones in the doorway
+  (the strip as wide as the door, 1 m to either side of its wall), lead from the start through
+  the door to 0.4 m beyond it;
 - floor tilt error when the cloud is tilted by 0, 5, 10 and 15 degrees.
 Free-space rays start at the world's start position at the drone's flight height (--camera).
 Writes bench/results/grid_accuracy.json. Does not read ../shared.
@@ -75,26 +76,33 @@ def dilate(mask):
     return cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
 
 
-def door_passable(cells, resolution, ox, oy, start, door, reach_m=1.0):
+def door_passable(cells, resolution, ox, oy, start, gap, reach_m=1.0, beyond_m=0.4):
+    """True when observed free cells, or unknown ones in the doorway, lead from start through the
+    door gap (x1, y1, x2, y2) to at least beyond_m past its wall; the doorway is the strip as wide
+    as the gap reaching reach_m to either side of the wall."""
     rows, cols = cells.shape
     cc, rr = np.meshgrid(np.arange(cols), np.arange(rows))
     x, y = ox + (cc + 0.5) * resolution, oy + (rr + 0.5) * resolution
-    outward = (np.asarray(door) - start) / np.linalg.norm(np.asarray(door) - start)
-    target = np.asarray(door) + 0.6 * outward
-    allowed = (cells == 0) | ((cells != 100) & (np.hypot(x - door[0], y - door[1]) < reach_m))
-
-    def cell(p):
-        return (min(max(int((p[1] - oy) / resolution), 0), rows - 1),
-                min(max(int((p[0] - ox) / resolution), 0), cols - 1))
-
-    first, goal = cell(start), cell(target)
+    a, b = np.asarray(gap[:2], dtype=float), np.asarray(gap[2:4], dtype=float)
+    middle, width_m = (a + b) / 2, np.linalg.norm(b - a)
+    along = (b - a) / width_m
+    normal = np.array([-along[1], along[0]])
+    if normal @ (np.asarray(start) - middle) > 0:
+        normal = -normal  # outward: away from the start
+    along_m = (x - middle[0]) * along[0] + (y - middle[1]) * along[1]
+    out_m = (x - middle[0]) * normal[0] + (y - middle[1]) * normal[1]
+    doorway = (np.abs(along_m) <= width_m / 2) & (np.abs(out_m) <= reach_m)
+    allowed = (cells == 0) | ((cells != 100) & doorway)
+    goal = doorway & (out_m >= beyond_m)
+    first = (min(max(int((start[1] - oy) / resolution), 0), rows - 1),
+             min(max(int((start[0] - ox) / resolution), 0), cols - 1))
     allowed[first] = True
     seen = np.zeros_like(allowed)
     seen[first] = True
     queue = collections.deque([first])
     while queue:
         r, c = queue.popleft()
-        if (r, c) == goal:
+        if goal[r, c]:
             return True
         for nr, nc in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
             if 0 <= nr < rows and 0 <= nc < cols and allowed[nr, nc] and not seen[nr, nc]:
@@ -141,7 +149,7 @@ def main():
         row["recall"] = round(np.count_nonzero(seen_truth & dilate(occupied))
                               / max(np.count_nonzero(seen_truth), 1), 3)
         start = np.array(world.start[:2])
-        row["doors_passable"] = [bool(door_passable(cells, res, ox, oy, start, (e["x"], e["y"])))
+        row["doors_passable"] = [bool(door_passable(cells, res, ox, oy, start, world.exit_gap(e)))
                                  for e in world.exits]
         row["floor_tilt_error_deg"] = {}
         for degrees in (0, 5, 10, 15):

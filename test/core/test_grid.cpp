@@ -436,11 +436,13 @@ TEST(GridBuilder, RaysCrossingALineBetweenTwoPointsKeepItOpenButNotAnArea)
     rays.push_back(FreeRay{ Eigen::Vector2d(x, 1.0), Eigen::Vector2d(x, -1.0) });
     rays.push_back(FreeRay{ Eigen::Vector2d(x + 0.01, 1.5), Eigen::Vector2d(x - 0.01, -1.5) });
   }
-  GridBuilder builder;  // clear_segment_min_rays 2
+  GridBuilderConfig cfg;  // clear_segment_min_rays 2
+  cfg.alpha.alpha_m = 0.2;
+  GridBuilder builder(cfg);
   ASSERT_TRUE(builder.update(pts, rays).ok);
   EXPECT_EQ(valueAt(builder.grid(), 1.225, 0.025), OccupancyGrid::kFree);
   EXPECT_EQ(valueAt(builder.grid(), 0.525, 0.025), OccupancyGrid::kOccupied) << "the wall stays";
-  GridBuilderConfig off;
+  GridBuilderConfig off = cfg;
   off.clear_segment_min_rays = 0;
   GridBuilder closed(off);
   ASSERT_TRUE(closed.update(pts, rays).ok);

@@ -16,8 +16,10 @@ struct AlphaShapeConfig
 {
   /// Alpha as a radius [m] (CGAL's alpha is its square). Two obstacle points are joined when a
   /// circle of this radius touches both with no point inside, so gaps up to 2 * alpha_m close and
-  /// wider ones (doorways) stay open. The 0.2 m default keeps 0.9 m doors open with margin.
-  double alpha_m = 0.2;
+  /// wider ones (doorways) stay open. 0.17 m: a door seen obliquely from across the room shows
+  /// only a band a few cells wide between its jambs' noisy points, which 0.2 m closed in one scan
+  /// in five (bench/bench_grid_accuracy.py); walls lose about one point of recall.
+  double alpha_m = 0.17;
   /// When true, alpha_m is replaced at each full rebuild by
   /// clamp(auto_alpha_factor * P(auto_alpha_percentile) of the nearest-neighbour spacing of the
   /// one-point-per-cell obstacles, [resolution, max_auto_alpha_m]); incremental updates keep it.

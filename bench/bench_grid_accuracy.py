@@ -31,6 +31,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "src"))
 from sparse_nav.pointfiles import write_points_csv  # noqa: E402
 from sparse_nav.scanning import initial_scan, to_tello_commands  # noqa: E402
 from sparse_nav.sim import SimConfig, Simulator, list_worlds, load_world  # noqa: E402
+from sparse_nav.sim.world import doorway_strip  # noqa: E402
 
 BUILD_GRID = os.environ.get("SPARSE_NAV_BUILD_GRID",
                             os.path.join(HERE, "..", "build", "ws", "devel", "lib", "sparse_nav",
@@ -82,16 +83,9 @@ def door_passable(cells, resolution, ox, oy, start, gap, reach_m=1.0, beyond_m=0
     as the gap reaching reach_m to either side of the wall."""
     rows, cols = cells.shape
     cc, rr = np.meshgrid(np.arange(cols), np.arange(rows))
-    x, y = ox + (cc + 0.5) * resolution, oy + (rr + 0.5) * resolution
-    a, b = np.asarray(gap[:2], dtype=float), np.asarray(gap[2:4], dtype=float)
-    middle, width_m = (a + b) / 2, np.linalg.norm(b - a)
-    along = (b - a) / width_m
-    normal = np.array([-along[1], along[0]])
-    if normal @ (np.asarray(start) - middle) > 0:
-        normal = -normal  # outward: away from the start
-    along_m = (x - middle[0]) * along[0] + (y - middle[1]) * along[1]
-    out_m = (x - middle[0]) * normal[0] + (y - middle[1]) * normal[1]
-    doorway = (np.abs(along_m) <= width_m / 2) & (np.abs(out_m) <= reach_m)
+    xy = np.stack([ox + (cc.ravel() + 0.5) * resolution, oy + (rr.ravel() + 0.5) * resolution], 1)
+    doorway, out_m = doorway_strip(xy, gap, start, reach_m)
+    doorway, out_m = doorway.reshape(rows, cols), out_m.reshape(rows, cols)
     allowed = (cells == 0) | ((cells != 100) & doorway)
     goal = doorway & (out_m >= beyond_m)
     first = (min(max(int((start[1] - oy) / resolution), 0), rows - 1),

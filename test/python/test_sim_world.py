@@ -7,7 +7,8 @@ import pytest
 
 from sparse_nav.sim import World, WorldError, list_worlds, load_world, random_world
 from sparse_nav.sim.camera import Camera, frustum_mask, occluded_mask
-from sparse_nav.sim.world import point_in_polygon, segment_distances, world_from_dict
+from sparse_nav.sim.world import (doorway_strip, point_in_polygon, segment_distances,
+                                  world_from_dict)
 
 SHIPPED = ["large_hall", "l_room", "office_hallway", "one_room", "two_rooms"]
 
@@ -84,6 +85,16 @@ def test_shipped_world_specifics():
     assert len(hall.exits) == 2 and len(hall.boxes) >= 4
     hallway = load_world("office_hallway")
     assert min(w.texture_per_m2 for w in hallway.walls) < 5, "a low-texture wall segment"
+
+
+def test_doorway_strip_is_as_wide_as_the_gap_and_measures_away_from_the_room():
+    gap = (5.95, 5.8, 5.05, 5.8)   # one_room's exit, in a wall along x
+    xy = np.array([[5.5, 6.5], [5.5, 5.0], [5.0, 6.0], [5.5, 7.0], [5.9, 6.2]])
+    strip, beyond = doorway_strip(xy, gap, inside_xy=(3.0, 2.5), reach_m=1.0)
+    assert strip.tolist() == [True, True, False, False, True]
+    assert np.allclose(beyond, [0.7, -0.8, 0.2, 1.2, 0.4])
+    _, from_outside = doorway_strip(xy, gap, inside_xy=(5.5, 9.0))
+    assert np.allclose(from_outside, -beyond)
 
 
 def test_features_are_deterministic_for_a_given_rng():

@@ -15,6 +15,7 @@ from drone_driver import DroneDriver
 from sparse_nav.msg import FloorEstimate, SlamScale, SlamState
 from sparse_nav.ros.conversions import pose_to_matrix, transform_to_matrix
 from sparse_nav.ros.sim_node import load_ros_world
+from sparse_nav.sim.world import doorway_strip
 from sparse_nav.scanning import initial_scan, to_tello_commands
 from sparse_nav.transforms import yaw_of
 
@@ -62,14 +63,7 @@ def passable_through_doorway(grid, xy, room, start, gap, reach_m=1.0, beyond_m=0
     beyond_m outside the wall: the door is open when one can walk through it, whichever line one
     takes (a fixed target point beside the jamb would judge the jamb's noise, not the door).
     """
-    a, b = np.asarray(gap[:2], dtype=float), np.asarray(gap[2:4], dtype=float)
-    middle, width_m = (a + b) / 2, np.linalg.norm(b - a)
-    along = (b - a) / width_m
-    normal = np.array([-along[1], along[0]])
-    if normal @ (np.asarray(start) - middle) > 0:
-        normal = -normal  # outward: away from the room
-    along_m, out_m = (xy - middle) @ along, (xy - middle) @ normal
-    doorway = (np.abs(along_m) <= width_m / 2) & (np.abs(out_m) <= reach_m)
+    doorway, out_m = doorway_strip(xy, gap, start, reach_m)
     width, height = grid.info.width, grid.info.height
     allowed = ((np.asarray(grid.data) != 100) & (room | doorway)).reshape(height, width)
     goal = (doorway & ~room & (out_m >= beyond_m)).reshape(height, width)

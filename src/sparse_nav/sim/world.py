@@ -619,6 +619,25 @@ def points_in_polygon(points, poly):
     return np.count_nonzero(crosses, axis=1) % 2 == 1
 
 
+def doorway_strip(xy, gap, inside_xy, reach_m=1.0):
+    """Cells of a door's doorway and how far beyond the door they lie.
+
+    xy: (N, 2) points (m); gap: the door gap (x1, y1, x2, y2) (m); inside_xy: a point on the
+    room's side of the door. Returns (mask, beyond_m): mask (N,) is True inside the strip as wide
+    as the gap reaching reach_m to either side of its wall; beyond_m (N,) is each point's signed
+    distance (m) from the wall line, positive away from inside_xy.
+    """
+    a, b = np.asarray(gap[:2], dtype=float), np.asarray(gap[2:4], dtype=float)
+    middle, width_m = (a + b) / 2, float(np.linalg.norm(b - a))
+    along = (b - a) / width_m
+    normal = np.array([-along[1], along[0]])
+    if normal @ (np.asarray(inside_xy, dtype=float) - middle) > 0:
+        normal = -normal
+    offset = np.asarray(xy, dtype=float) - middle
+    beyond_m = offset @ normal
+    return (np.abs(offset @ along) <= width_m / 2) & (np.abs(beyond_m) <= reach_m), beyond_m
+
+
 def polygon_area(poly):
     """Area (m^2) of a simple polygon (M, 2)."""
     x, y = poly[:, 0], poly[:, 1]

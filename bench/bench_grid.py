@@ -57,7 +57,7 @@ except ImportError as missing:
     BASELINE_MISSING = (f"not run: {missing} (apt-get install python3-shapely python3-rtree)")
 
 RESOLUTION_M = 0.05
-ALPHA_M = 0.2               # build_grid's default alpha radius; the baseline uses the same
+ALPHA_M = 0.17              # build_grid's default alpha radius, passed to it and to the baseline
 FLOOR_CLEARANCE_M = 0.15    # build_grid's default obstacle band above the floor
 CEILING_HEIGHT_M = 2.2
 CLOUD_SEED = 4              # seed of every generated cloud
@@ -269,7 +269,8 @@ def run_ours(binary, csv, tmp, runs):
     for i in range(runs):
         prefix = os.path.join(tmp, f"ours_{i}")
         results.append(run_json([binary, csv, "--out", prefix, "--up-axis", "z",
-                                 "--resolution", str(RESOLUTION_M), "--json"]))
+                                 "--resolution", str(RESOLUTION_M), "--alpha", str(ALPHA_M),
+                                 "--json"]))
     stages = median_stages(results)
     totals = [sum(r["stages_ms"].values()) for r in results]
     rebuilds = [sum(v for k, v in r["stages_ms"].items() if k not in ("read", "write"))
@@ -297,7 +298,7 @@ def run_update(binary, csv, changed_csv, tmp, runs):
     for i in range(runs):
         out = run_json([binary, csv, "--update", changed_csv,
                         "--out", os.path.join(tmp, f"upd_{i}"), "--up-axis", "z",
-                        "--resolution", str(RESOLUTION_M), "--json"])
+                        "--resolution", str(RESOLUTION_M), "--alpha", str(ALPHA_M), "--json"])
         update = out.get("update")
         if not isinstance(update, dict) or "stages_ms" not in update:
             return "build_grid --update printed no \"update\": {\"stages_ms\": ..} object"

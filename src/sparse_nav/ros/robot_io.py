@@ -42,12 +42,17 @@ class TelloClient:
     def send(self, text):
         """The drone's answer ("ok", "error: ..."), or "timeout"."""
         with self._busy:
+            deadline = rospy.Time.now() + rospy.Duration(self.timeout_s)
+            # A command published before the driver is connected is lost for good, and so is an
+            # answer sent before this node listens: the first "command" at launch was.
+            while not rospy.is_shutdown() and rospy.Time.now() < deadline and not (
+                    self._pub.get_num_connections() and self._sub.get_num_connections()):
+                rospy.sleep(0.05)
             with self._lock:
                 before = len(self._responses)
             self._pub.publish(String(data=text))
             with self._lock:
                 self.last_traffic = rospy.Time.now()
-            deadline = rospy.Time.now() + rospy.Duration(self.timeout_s)
             while not rospy.is_shutdown() and rospy.Time.now() < deadline:
                 with self._lock:
                     if len(self._responses) > before:

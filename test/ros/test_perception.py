@@ -15,8 +15,8 @@ from drone_driver import DroneDriver
 from sparse_nav.msg import FloorEstimate, SlamScale, SlamState
 from sparse_nav.ros.conversions import pose_to_matrix, transform_to_matrix
 from sparse_nav.ros.sim_node import load_ros_world
-from sparse_nav.sim.world import doorway_strip
 from sparse_nav.scanning import initial_scan, to_tello_commands
+from sparse_nav.sim.world import doorway_strip
 from sparse_nav.transforms import yaw_of
 
 

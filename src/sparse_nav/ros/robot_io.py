@@ -1,6 +1,7 @@
 """Carrying out scan Steps on a robot: Tello commands or cmd_vel segments (rospy glue)."""
 import threading
 
+import rosgraph
 import rospy
 from geometry_msgs.msg import Twist
 from std_msgs.msg import String
@@ -26,6 +27,7 @@ class TelloClient:
         self._responses = []
         self._busy = threading.Lock()
         self.last_traffic = None  # rospy.Time of the last command or answer of anyone
+        self._driver = None  # caller id of the node answering our commands, once connected
         self._sub = rospy.Subscriber("tello/response", String, self._on_response, queue_size=20)
         self._pub = rospy.Publisher("tello/command", String, queue_size=10)
         self._watch = rospy.Subscriber("tello/command", String, self._on_command, queue_size=20)
@@ -45,8 +47,8 @@ class TelloClient:
             deadline = rospy.Time.now() + rospy.Duration(self.timeout_s)
             # A command published before the driver is connected is lost for good, and so is an
             # answer sent before this node listens: the first "command" at launch was.
-            while not rospy.is_shutdown() and rospy.Time.now() < deadline and not (
-                    self._pub.get_num_connections() and self._sub.get_num_connections()):
+            while (not rospy.is_shutdown() and rospy.Time.now() < deadline
+                   and not self._driver_connected()):
                 rospy.sleep(0.05)
             with self._lock:
                 before = len(self._responses)
@@ -61,6 +63,23 @@ class TelloClient:
                     self.on_wait()
                 rospy.sleep(0.05)
             return "timeout"
+
+    def _driver_connected(self):
+        """True when a node that answers on tello/response receives our tello/command. Counting
+        connections is not enough: this node's own watch, the motion node's and rosbag's listen
+        too, and the driver makes its answer publisher before its command subscriber."""
+        if self._driver is not None and self._pub.impl.has_connection(self._driver):
+            return True
+        if not self._sub.get_num_connections():
+            return False
+        try:
+            publishers, _, _ = rosgraph.Master(rospy.get_name()).getSystemState()
+        except (OSError, rosgraph.MasterException):
+            return False
+        answering = next((nodes for topic, nodes in publishers
+                          if topic == self._sub.resolved_name), [])
+        self._driver = next((n for n in answering if self._pub.impl.has_connection(n)), None)
+        return self._driver is not None
 
     def idle_s(self):
         """Seconds since the last command or answer on the line, or None before the first."""

@@ -14,7 +14,6 @@ measure the grid pipeline, not the scale estimate), goes through build_grid. Rep
 Free-space rays start at the world's start position at the drone's flight height (--camera).
 Writes bench/results/grid_accuracy.json. Does not read ../shared.
 """
-import collections
 import json
 import os
 import subprocess
@@ -24,6 +23,7 @@ import tempfile
 import cv2
 import numpy as np
 import yaml
+from scipy import ndimage
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "src"))
@@ -91,19 +91,8 @@ def door_passable(cells, resolution, ox, oy, start, gap, reach_m=1.0, beyond_m=0
     first = (min(max(int((start[1] - oy) / resolution), 0), rows - 1),
              min(max(int((start[0] - ox) / resolution), 0), cols - 1))
     allowed[first] = True
-    seen = np.zeros_like(allowed)
-    seen[first] = True
-    queue = collections.deque([first])
-    while queue:
-        r, c = queue.popleft()
-        if goal[r, c]:
-            return True
-        for nr, nc in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
-            if 0 <= nr < rows and 0 <= nc < cols and allowed[nr, nc] and not seen[nr, nc]:
-                seen[nr, nc] = True
-                queue.append((nr, nc))
-    return False
-
+    labels, _ = ndimage.label(allowed)  # 4-connected components
+    return bool(goal[labels == labels[first]].any())
 
 def tilt(points, degrees):
     a = np.radians(degrees)

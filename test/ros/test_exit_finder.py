@@ -17,9 +17,9 @@ import tf2_ros
 from geometry_msgs.msg import PointStamped
 from std_msgs.msg import Float64
 
-from drone_driver import DroneDriver
 from sparse_nav.msg import ExitCandidates, SlamScale
 from sparse_nav.ros.conversions import transform_to_matrix
+from sparse_nav.ros.robot_io import TelloClient
 from sparse_nav.ros.sim_node import load_ros_world
 from sparse_nav.scanning import initial_scan, to_tello_commands
 from sparse_nav.srv import FindExit
@@ -39,7 +39,7 @@ class ExitFinderTest(unittest.TestCase):
         rospy.Subscriber("exit", PointStamped, self._on_exit, queue_size=5)
         rospy.Subscriber("slam/scale", SlamScale, self._on_scale, queue_size=1)
         rospy.Subscriber("ground_truth/slam_scale", Float64, self._on_true_scale, queue_size=1)
-        self.drone = DroneDriver()
+        self.drone = TelloClient()
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(60.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
 
@@ -57,7 +57,7 @@ class ExitFinderTest(unittest.TestCase):
 
     def _fly(self, commands):
         for command in commands:
-            self.drone.command(command)
+            self.drone.send(command)
             if rospy.Time.now().to_sec() > self.limit_s:
                 break
         rospy.sleep(3.0)

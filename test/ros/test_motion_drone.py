@@ -12,9 +12,9 @@ import rostest
 from std_msgs.msg import String
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from drone_driver import DroneDriver  # noqa: E402
 from motion_harness import MotionHarness  # noqa: E402
 from sparse_nav.msg import MotionStatus, SlamState  # noqa: E402
+from sparse_nav.ros.robot_io import TelloClient  # noqa: E402
 from sparse_nav.scanning import initial_scan, to_tello_commands  # noqa: E402
 from sparse_nav.sim.robots import TelloDrone  # noqa: E402
 
@@ -22,7 +22,7 @@ from sparse_nav.sim.robots import TelloDrone  # noqa: E402
 class MotionDroneTest(unittest.TestCase):
     def test_flies_path_to_its_end(self):
         h = MotionHarness()
-        driver = DroneDriver(timeout_s=30.0)
+        driver = TelloClient(timeout_s=30.0)
         commands, lock = [], threading.Lock()
 
         def on_command(msg):
@@ -30,11 +30,11 @@ class MotionDroneTest(unittest.TestCase):
                 commands.append(msg.data)
         rospy.Subscriber("tello/command", String, on_command)
         h.wait_for_clock()
-        self.assertEqual(driver.command("command"), "ok")
-        self.assertEqual(driver.command("takeoff"), "ok")
+        self.assertEqual(driver.send("command"), "ok")
+        self.assertEqual(driver.send("takeoff"), "ok")
         ready = False
         for command in to_tello_commands(initial_scan()):
-            driver.command(command)
+            driver.send(command)
             with h.lock:
                 ready = (h.slam_state is not None and h.slam_state.state == SlamState.OK
                          and h.scale is not None and h.scale.n_samples >= 3)
@@ -76,7 +76,7 @@ class MotionDroneTest(unittest.TestCase):
         rospy.sleep(2.0)
         with lock:
             self.assertEqual(commands[before:], sent, "no command after REACHED")
-        driver.command("land")
+        driver.send("land")
 
 
 if __name__ == "__main__":

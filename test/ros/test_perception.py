@@ -11,9 +11,9 @@ from nav_msgs.msg import OccupancyGrid, Odometry
 from scipy import ndimage
 from std_msgs.msg import Float64
 
-from drone_driver import DroneDriver
 from sparse_nav.msg import FloorEstimate, SlamScale, SlamState
 from sparse_nav.ros.conversions import pose_to_matrix, transform_to_matrix
+from sparse_nav.ros.robot_io import TelloClient
 from sparse_nav.ros.sim_node import load_ros_world
 from sparse_nav.scanning import initial_scan, to_tello_commands
 from sparse_nav.sim.world import doorway_strip
@@ -90,7 +90,7 @@ class PerceptionTest(unittest.TestCase):
         rospy.Subscriber("floor_plane", FloorEstimate, self._on_floor, queue_size=1)
         rospy.Subscriber("ground_truth/odom", Odometry, self._on_true_odom, queue_size=1)
         rospy.Subscriber("slam/state", SlamState, self._on_slam_state, queue_size=20)
-        self.drone = DroneDriver()
+        self.drone = TelloClient()
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(60.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
 
@@ -166,7 +166,7 @@ class PerceptionTest(unittest.TestCase):
             rospy.sleep(0.05)
         rospy.sleep(1.0)
         for command in ["command", "takeoff"] + to_tello_commands(initial_scan()):
-            answer = self.drone.command(command)
+            answer = self.drone.send(command)
             if answer != "ok":
                 rospy.logwarn("perception test: %s -> %s", command, answer)
             if rospy.Time.now().to_sec() > self.limit_s:

@@ -19,7 +19,7 @@ import rostest
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import String
 
-from drone_driver import DroneDriver
+from sparse_nav.ros.robot_io import TelloClient
 from sparse_nav.scanning import initial_scan, to_tello_commands
 
 SCREENSHOT = os.path.join(tempfile.gettempdir(), "sparse_nav_rviz_screenshot.png")
@@ -51,7 +51,7 @@ class RvizScreenshotTest(unittest.TestCase):
         self.points = 0
         self.lock = threading.Lock()
         rospy.Subscriber("slam/points", PointCloud2, self._on_points, queue_size=2)
-        self.drone = DroneDriver()
+        self.drone = TelloClient()
         self.procs = []
 
     def tearDown(self):
@@ -73,7 +73,7 @@ class RvizScreenshotTest(unittest.TestCase):
             rospy.sleep(0.05)
         rospy.sleep(1.0)
         for command in ["command", "takeoff"] + to_tello_commands(initial_scan())[:30]:
-            self.drone.command(command)
+            self.drone.send(command)
             with self.lock:
                 if self.points >= 300:
                     break

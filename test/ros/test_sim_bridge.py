@@ -11,8 +11,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32
 
-from drone_driver import DroneDriver
 from sparse_nav.msg import SlamScale, SlamState
+from sparse_nav.ros.robot_io import TelloClient
 from sparse_nav.scanning import initial_scan, to_tello_commands, to_velocity_segments
 
 TOPICS = [("/clock", Clock), ("orb_slam3/camera_pose", PoseStamped),
@@ -35,7 +35,7 @@ class SimBridgeTest(unittest.TestCase):
         self.tf_buffer = tf2_ros.Buffer(rospy.Duration(60.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         self.cmd_pub = rospy.Publisher("cmd_vel", Twist, queue_size=10)
-        self.drone = DroneDriver()
+        self.drone = TelloClient()
 
     def _on_msg(self, msg, topic):
         with self.lock:
@@ -65,7 +65,7 @@ class SimBridgeTest(unittest.TestCase):
             self.cmd_pub.publish(Twist())
         else:
             for command in ["command", "takeoff"] + to_tello_commands(steps):
-                self.drone.command(command)
+                self.drone.send(command)
                 if rospy.Time.now().to_sec() > until_s:
                     break
 

@@ -183,3 +183,20 @@ def test_the_depth_spread_of_what_is_seen_through_an_opening():
     few = np.zeros(n, dtype=bool)
     few[:9] = True
     assert gapslib.through_depth_spread(profile, few, 2.0) == 0.0
+
+
+def test_a_stray_surface_in_an_opening_does_not_hide_the_door_behind_it():
+    # A round room of radius 1 with an opening over bearings 80-99 that shows a backdrop at 1.6,
+    # and at bearing 85 one stray surface in the opening: the first jump back inwards.
+    n = 360
+    angles = (np.arange(n) + 0.5) * (2 * np.pi / n) - np.pi
+    ranges = np.ones(n)
+    ranges[80:100] = 1.6
+    ranges[85] = 0.7
+    profile = gapslib.Profile(centre=np.zeros(2), angles=angles, ranges=ranges,
+                              bearing=np.zeros(0, dtype=int), radius=np.zeros(0))
+    # With only the first jump tried, the wall's end at 79 pairs with the stray surface, which
+    # is no jamb (nothing of a wall after it), and the door's left jamb is lost.
+    assert (79, 100) not in gapslib.find_notches(profile, ExitFinderConfig(gap_max_rights=1))
+    assert (79, 100) in gapslib.find_notches(profile, ExitFinderConfig(gap_max_rights=2))
+    assert ExitFinderConfig().gap_max_rights == 2

@@ -174,11 +174,13 @@ def find_notches(profile, cfg):
 
     A left jamb L ends a wall (its surface runs on for ``gap_jamb_bins`` bearings before it);
     the wall is extended past L as the least-squares line through the surface points of the
-    ``gap_extension_bins`` bearings up to L. The right jamb R is the first bearing after L where
-    the surface jumps back inwards (by ``gap_jump``) onto that extension, to the range of L or
-    nearer, or anywhere when the wall is seen nearly edge-on (``gap_grazing``); the surface
-    must not come back to the extension without such a jump (that is a wall, not an opening),
-    and R must start a wall itself. The bearings between must be unknown or beyond the bridge
+    ``gap_extension_bins`` bearings up to L. A right jamb R is one of the first
+    ``gap_max_rights`` bearings after L where the surface jumps back inwards (by ``gap_jump``)
+    onto that extension, to the range of L or nearer, or anywhere when the wall is seen nearly
+    edge-on (``gap_grazing``); the surface must not come back to the extension without such a
+    jump (that is a wall, not an opening), and R must start a wall itself. The first jump back
+    is not always the door's far jamb (a stray cluster in the opening, a wall seen obliquely);
+    the confidence and the overlap suppression choose among the pairs. The bearings between must be unknown or beyond the bridge
     L-R for at least ``gap_notch_share`` of them (noise leaves stray surfaces in an opening).
     Bin indices may exceed the number of bins (the circle wraps); use them modulo B.
     """
@@ -205,7 +207,7 @@ def find_notches(profile, cfg):
             continue                       # the wall goes on: no opening after this bearing
         if not _on_wall(r, left, -1, cfg):
             continue
-        right = None
+        rights = []
         for k in range(1, max_span):
             j = left + 1 + k
             rj = r[j % n]
@@ -216,29 +218,38 @@ def find_notches(profile, cfg):
             inward = not np.all(np.isfinite(before)) or before.max() > rj * grow
             if inward and (back_on_wall or rj <= r[left] * grow or
                            ext[k] > cfg.gap_grazing * r[left]):
-                right = j                  # the surface jumps back: the other jamb
-                break
+                rights.append(j)           # the surface jumps back: a candidate other jamb
+                if len(rights) == cfg.gap_max_rights:
+                    break
+                continue
             if back_on_wall and ext[k] <= r[left] * grow:
                 # Back on the wall without a jamb: no opening. Where the extension has run far
                 # beyond the jamb (a wall seen obliquely) it meets the surface behind an opening,
                 # which says nothing about the wall.
                 break
-        if right is None or not _on_wall(r, right, 1, cfg):
-            continue
-        # Seen past the opening's edge, a jamb's bearings are a door frame's wall: nothing dense
-        # behind it. A box or a wall end in front of the room's wall has that wall behind it.
-        side = cfg.gap_occluder_offset + np.arange(cfg.gap_jamb_bins + 1)
-        if _occluder(behind, left - side, cfg) or _occluder(behind, right + side, cfg):
-            continue
-        width = float(np.hypot(*(pts[right % n] - pts[left])))
-        if not cfg.gap_min_width <= width <= cfg.gap_max_width:
-            continue
-        idx, bridge = _bridge_ranges(profile, left, right)
-        inner = r[idx]
-        beyond = ~np.isfinite(inner) | (inner > bridge * grow)
-        if np.all(np.isfinite(bridge)) and np.mean(beyond) >= cfg.gap_notch_share:
-            notches.append((int(left), int(right)))
+        for right in rights:
+            if _is_notch(profile, pts, behind, left, right, cfg):
+                notches.append((int(left), int(right)))
     return notches
+
+
+def _is_notch(profile, pts, behind, left, right, cfg):
+    """The checks of a jamb pair (left, right) that make it an opening (:func:`find_notches`)."""
+    r = profile.ranges
+    n = len(r)
+    if not _on_wall(r, right, 1, cfg):
+        return False
+    # Seen past the opening's edge, a jamb's bearings are a door frame's wall: nothing dense
+    # behind it. A box or a wall end in front of the room's wall has that wall behind it.
+    side = cfg.gap_occluder_offset + np.arange(cfg.gap_jamb_bins + 1)
+    if _occluder(behind, left - side, cfg) or _occluder(behind, right + side, cfg):
+        return False
+    width = float(np.hypot(*(pts[right % n] - pts[left])))
+    if not cfg.gap_min_width <= width <= cfg.gap_max_width:
+        return False
+    idx, bridge = _bridge_ranges(profile, left, right)
+    beyond = ~np.isfinite(r[idx]) | (r[idx] > bridge * (1.0 + cfg.gap_jump))
+    return bool(np.all(np.isfinite(bridge)) and np.mean(beyond) >= cfg.gap_notch_share)
 
 
 def _extension_ranges(profile, pts, known, left, back, dirs):

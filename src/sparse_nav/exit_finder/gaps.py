@@ -180,8 +180,9 @@ def find_notches(profile, cfg):
     edge-on (``gap_grazing``); the surface must not come back to the extension without such a
     jump (that is a wall, not an opening), and R must start a wall itself. The first jump back
     is not always the door's far jamb (a stray cluster in the opening, a wall seen obliquely);
-    the confidence and the overlap suppression choose among the pairs. The bearings between must be unknown or beyond the bridge
-    L-R for at least ``gap_notch_share`` of them (noise leaves stray surfaces in an opening).
+    the confidence and the overlap suppression choose among the pairs. The bearings between
+    must be unknown or beyond the bridge L-R for at least ``gap_notch_share`` of them (noise
+    leaves stray surfaces in an opening).
     Bin indices may exceed the number of bins (the circle wraps); use them modulo B.
     """
     r = profile.ranges

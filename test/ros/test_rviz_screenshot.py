@@ -17,7 +17,6 @@ import rospkg
 import rospy
 import rostest
 from sensor_msgs.msg import PointCloud2
-from std_msgs.msg import String
 
 from sparse_nav.ros.robot_io import TelloClient
 from sparse_nav.scanning import initial_scan, to_tello_commands
@@ -52,8 +51,6 @@ class RvizScreenshotTest(unittest.TestCase):
         self.lock = threading.Lock()
         rospy.Subscriber("slam/points", PointCloud2, self._on_points, queue_size=2)
         self.drone = TelloClient()
-        # Unanswered commands that keep the drone flying while rviz draws (no auto-landing).
-        self.keep_flying = rospy.Publisher("tello/command", String, queue_size=1)
         self.procs = []
 
     def tearDown(self):
@@ -95,7 +92,7 @@ class RvizScreenshotTest(unittest.TestCase):
         deadline = time.monotonic() + 150.0
         while time.monotonic() < deadline and best < 200:
             time.sleep(5.0)
-            self.keep_flying.publish(String(data="cw 10"))
+            self.drone.send("cw 10")  # keep flying while rviz draws: no auto-landing
             shot = _screenshot(display)
             count = red_pixels(shot)
             if count >= best:

@@ -94,6 +94,7 @@ def door_passable(cells, resolution, ox, oy, start, gap, reach_m=1.0, beyond_m=0
     labels, _ = ndimage.label(allowed)  # 4-connected components
     return bool(goal[labels == labels[first]].any())
 
+
 def tilt(points, degrees):
     a = np.radians(degrees)
     rot = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])

@@ -73,6 +73,7 @@ def passable_through_doorway(grid, xy, room, start, gap, reach_m=1.0, beyond_m=0
     labels, _ = ndimage.label(allowed)  # 4-connected components
     return bool(goal[labels == labels[first]].any())
 
+
 class PerceptionTest(unittest.TestCase):
     def setUp(self):
         self.world = load_ros_world(rospy.get_param("~world"))

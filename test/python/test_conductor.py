@@ -1,4 +1,5 @@
 """The conductor's automaton and the scan retry mechanism, without ROS."""
+import numpy as np
 import pytest
 
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, Phase,
@@ -8,6 +9,13 @@ from sparse_nav.scanning import Step
 
 def kinds(actions):
     return [a.kind for a in actions]
+
+
+# GridView.walls_around answers, 12 bearings of 30 deg from the map's x axis: walls to the west
+# only (the building behind a robot beyond an exit, the door at 180 deg), and all round but for
+# one bearing (330 deg).
+WALLS_OUTSIDE = (False,) * 3 + (True,) * 3 + (False,) + (True,) * 3 + (False,) * 2
+WALLS_ROOM = (True,) * 11 + (False,)
 
 
 class Mission:
@@ -54,11 +62,17 @@ def test_the_whole_mission_in_order():
     assert beyond == pytest.approx((3.9, 5.2))
     m.tick(navigator_state="following")
     # Within tolerance: the navigator's goal is cancelled, so no path outlives the mission.
-    assert kinds(m.tick(robot_xy=(3.8, 5.1))) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    actions = m.tick(robot_xy=(3.8, 5.1))
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.CANCEL_GOAL, None),
+                                                      (ActionKind.SCAN, "look_around")]
+    assert (m.conductor.state, m.conductor.phase) == (State.START, Phase.LOOK_AROUND)
+    m.tick(scan_running=True)
+    assert kinds(m.tick(scan_running=False, walls_around=WALLS_OUTSIDE)) == [ActionKind.STOP]
     assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
+    assert "openings up to 150 deg" in m.conductor.reason
     phases = [tr.phase for tr in m.conductor.history]
     assert phases == [Phase.INITIAL_SCAN, Phase.WALL_SCAN, Phase.FIND_EXIT, Phase.GO_TO_EXIT,
-                      Phase.PASS_THROUGH, Phase.DONE]
+                      Phase.PASS_THROUGH, Phase.LOOK_AROUND, Phase.DONE]
     assert all(tr.reason for tr in m.conductor.history)
 
 
@@ -239,8 +253,8 @@ def test_passing_through_a_false_exit_and_staying_in_the_room_tries_the_next_can
     m.tick(robot_xy=(5.9, 0.0), navigator_state="reached")
     m.tick(navigator_state="following")
     actions = m.tick(robot_xy=(7.4, 0.0), navigator_state="reached")
-    assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
-    assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
+    assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.SCAN]
+    assert (m.conductor.state, m.conductor.phase) == (State.START, Phase.LOOK_AROUND)
 
 
 def test_a_false_exit_without_alternatives_asks_again_and_never_takes_it_twice():
@@ -277,13 +291,106 @@ def test_an_exit_rejected_in_one_slam_map_is_not_skipped_in_another():
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (2.0, 0.0))]
 
 
-def test_passing_through_near_the_outline_or_without_one_is_done():
+def test_passing_through_near_the_outline_or_without_one_is_past_the_exit():
     m = passing_through()  # exit (5, 0), 1 m inside ROOM's east wall
     m.tick(robot_xy=(5.8, 0.0), navigator_state="reached")  # 0.2 m inside: within the margin
-    assert m.conductor.phase == Phase.DONE
-    m = passing_through()
+    assert m.conductor.phase == Phase.LOOK_AROUND
+    m = passing_through(ConductorConfig(wall_scan_enabled=False, max_rooms=1))
     m.tick(robot_xy=(3.0, 0.0), room_outline=(), navigator_state="reached")
-    assert m.conductor.phase == Phase.DONE
+    assert m.conductor.phase == Phase.DONE and m.conductor.reason == "passed through the exit"
+
+
+def looking_around():
+    """passing_through, then at the pass-through goal (6.5, 0) and looking around there."""
+    m = passing_through()
+    actions = m.tick(robot_xy=(6.5, 0.0), navigator_state="reached")
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.CANCEL_GOAL, None),
+                                                      (ActionKind.SCAN, "look_around")]
+    m.tick(scan_running=True, navigator_state="")
+    return m
+
+
+def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_turn():
+    m = looking_around()
+    # The one bearing without a wall (330 deg) is not toward the door come through (180 deg).
+    actions = m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.FIND_EXIT, "robot")]
+    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
+    assert "another room beyond the exit (openings up to 30 deg wide)" in m.conductor.reason
+    # The door come through is no exit of the new room; the new room's exit goes first.
+    actions = m.tick(exit_answered=True, exit_xy=(5.1, 0.2), exit_alternatives=((9.0, 3.0),))
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (9.0, 3.0))]
+    m.tick(robot_xy=(9.0, 3.0), navigator_state="reached")
+    # Passing through goes on along the line from where the robot looked around, (6.5, 0).
+    along = np.array([2.5, 3.0]) / np.hypot(2.5, 3.0)
+    assert m.conductor.goal_xy == pytest.approx(tuple(np.array([9.0, 3.0]) + 1.5 * along))
+    m.tick(robot_xy=m.conductor.goal_xy, navigator_state="reached")
+    m.tick(scan_running=True, navigator_state="")
+    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "passed through the exit: openings up to 150 deg wide around")
+
+
+def test_a_room_without_an_exit_sends_the_robot_back_to_the_first_rooms_other_candidates():
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 5.0),))
+    m.tick(robot_xy=(5.0, 0.0), navigator_state="reached")
+    m.tick(robot_xy=(6.5, 0.0), navigator_state="reached")
+    m.tick(scan_running=True, navigator_state="")
+    m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    # Only the door come through in the new room: the first room's other candidate is next.
+    actions = m.tick(exit_answered=True, exit_xy=(5.0, 0.1), exit_alternatives=())
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (0.0, 5.0))]
+
+
+def test_an_opening_only_toward_the_door_come_through_is_another_room():
+    m = looking_around()
+    # Walls everywhere but 150-210 deg: toward the exit at (5, 0) from (6.5, 0).
+    walls = (True,) * 5 + (False,) * 3 + (True,) * 4
+    assert kinds(m.tick(scan_running=False, walls_around=walls)) == [ActionKind.FIND_EXIT]
+
+
+def test_no_map_to_look_around_in_is_done_after_the_exit():
+    m = looking_around()
+    assert kinds(m.tick(scan_running=False, walls_around=())) == [ActionKind.STOP]
+    assert m.conductor.phase == Phase.DONE and "no map to look around in" in m.conductor.reason
+
+
+def test_tracking_lost_while_looking_around_decides_by_the_last_look():
+    m = looking_around()
+    m.tick(walls_around=WALLS_OUTSIDE)
+    assert kinds(m.tick(tracking_lost=True, walls_around=())) == [ActionKind.STOP]
+    assert m.conductor.phase == Phase.DONE and "tracking lost looking around" in m.conductor.reason
+    m = looking_around()
+    m.tick(walls_around=WALLS_ROOM)
+    m.tick(tracking_lost=True, walls_around=())
+    assert (m.conductor.state, m.conductor.phase) == (State.LOST, Phase.LOOK_AROUND)
+    m.tick(tracking_lost=False, scan_running=False)
+    m.tick()
+    # The scan ended while lost: the last look decides.
+    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
+
+
+def test_the_number_of_rooms_is_bounded():
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    m.tick(exit_answered=True, exit_xy=(9.0, 3.0))
+    m.tick(robot_xy=(9.0, 3.0), navigator_state="reached")
+    m.tick(robot_xy=m.conductor.goal_xy, navigator_state="reached")
+    m.tick(scan_running=True, navigator_state="")
+    m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    assert m.conductor.rooms == 3
+    m.tick(exit_answered=True, exit_xy=(12.0, 3.0))
+    m.tick(robot_xy=(12.0, 3.0), navigator_state="reached")
+    m.tick(robot_xy=m.conductor.goal_xy, navigator_state="reached")
+    m.tick(scan_running=True, navigator_state="")
+    actions = m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert m.conductor.phase == Phase.GAVE_UP
+    assert m.conductor.reason == ("walls all round beyond the exit (openings up to 30 deg wide) "
+                                  "after 3 rooms")
 
 
 def test_not_initialised_slam_is_not_a_loss():

@@ -4,7 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
+from sparse_nav.conductor.grid_queries import (GridView, order_exits, steps_out_of_obstacle,
+                                                widest_opening_deg)
 
 
 @pytest.fixture
@@ -89,3 +90,31 @@ def test_exits_with_free_space_beyond_go_first_in_the_finders_order(room_with_do
         (ranked[:2], False)
     assert order_exits(ranked, None, (2.0, 2.0), 0.3, 1.2, 0.3) == (ranked, True)
     assert order_exits(ranked, room_with_door, None, 0.3, 1.2, 0.3) == (ranked, True)
+
+
+def test_walls_around_and_the_widest_opening(room):
+    walls = room.walls_around(0.0, 0.0, max_m=5.0, n_rays=36)
+    assert walls.all()  # the border all round
+    assert widest_opening_deg(walls) == 0.0
+    # A 1 m door in the east wall (x = 2.9 m, y from -0.2 to 0.8 m): the rays at 0 and 10 deg
+    # leave the map through it.
+    room.cells[8:18, 39] = 0
+    walls = room.walls_around(0.0, 0.0, max_m=5.0, n_rays=36)
+    assert np.flatnonzero(~walls).tolist() == [0, 1]
+    assert widest_opening_deg(walls) == 20.0
+    # Walls out of range are no walls: west and south at 0.9 m, north at 1.9 m.
+    walls = room.walls_around(0.0, 0.0, max_m=1.5, n_rays=4)
+    assert walls.tolist() == [False, False, True, True]
+    # Nor are unknown cells or the map's edge.
+    assert not room.walls_around(2.5, 1.5, max_m=0.3, n_rays=8).any()
+    assert not room.walls_around(20.0, 20.0, max_m=1.0, n_rays=8).any()
+
+
+def test_the_widest_opening_leaves_out_the_one_toward_a_given_bearing():
+    walls = [True, False, False, True, False, True, True, True]  # 45 deg a bearing
+    assert widest_opening_deg(walls) == 90.0
+    assert widest_opening_deg(walls, skip_bearing_rad=math.radians(90)) == 45.0
+    # Runs wrap round bearing 0.
+    assert widest_opening_deg([False, True, True, False, False]) == 216.0
+    assert widest_opening_deg([False] * 8) == 360.0
+    assert widest_opening_deg([]) == 360.0

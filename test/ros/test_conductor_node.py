@@ -106,7 +106,7 @@ class ConductorNodeTest(unittest.TestCase):
         phases = [s.phase for s in states]
         trail = [(s.state, s.phase, s.reason) for s in states]
         self.assertEqual(phases[-1], "done", f"the mission ends done: {trail}")
-        order = ["initial_scan", "find_exit", "go_to_exit", "pass_through", "done"]
+        order = ["initial_scan", "find_exit", "go_to_exit", "pass_through", "look_around", "done"]
         seen = [p for p in order if p in phases]
         self.assertEqual(seen, order, f"every phase, in order: {trail}")
         self.assertEqual([p for p in phases if p in order], sorted(

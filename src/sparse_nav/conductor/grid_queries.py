@@ -1,5 +1,6 @@
 """What the conductor asks of the occupancy grid (ROS-free): free room along a bearing, the cell
-under the robot, the way out of an obstacle, and whether an exit candidate leads out of the room."""
+under the robot, the way out of an obstacle, whether an exit candidate leads out of the room, and
+whether walls surround the robot (another room) or not (outside)."""
 import dataclasses
 import math
 
@@ -64,6 +65,22 @@ class GridView:
         best = int(np.argmin(d))
         return (float(cx[best]), float(cy[best])) if d[best] <= max_m else None
 
+    def walls_around(self, x, y, max_m, n_rays=72, occupied_at=50):
+        """(n_rays,) bool: along each bearing 2*pi*k/n_rays (counter-clockwise from the map's x
+        axis), an occupied cell within max_m of (x, y). Unknown cells are passed through, like
+        free ones: what the camera never saw is no wall."""
+        bearings = 2.0 * math.pi * np.arange(n_rays) / n_rays
+        distances = np.arange(0.0, max_m, self.resolution_m / 2.0)
+        xs = x + np.outer(np.cos(bearings), distances)
+        ys = y + np.outer(np.sin(bearings), distances)
+        cols = np.floor((xs - self.origin_xy[0]) / self.resolution_m).astype(int)
+        rows = np.floor((ys - self.origin_xy[1]) / self.resolution_m).astype(int)
+        on_map = (rows >= 0) & (rows < self.cells.shape[0]) & \
+            (cols >= 0) & (cols < self.cells.shape[1])
+        values = np.full(xs.shape, -1, dtype=int)
+        values[on_map] = self.cells[rows[on_map], cols[on_map]]
+        return np.any(values >= occupied_at, axis=1)
+
     def free_share_beyond(self, exit_xy, from_xy, near_m, far_m, occupied_at=50):
         """Share of the cells from near_m to far_m beyond exit_xy, on the line from from_xy
         through it, that the map knows to be free. The map's free space comes from rays to the
@@ -77,6 +94,30 @@ class GridView:
         values = [self.cell(exit_xy[0] + d * c, exit_xy[1] + d * s) for d in distances]
         free = sum(1 for v in values if v is not None and 0 <= v < occupied_at)
         return free / len(values)
+
+
+def widest_opening_deg(walls, skip_bearing_rad=None):
+    """The widest run of bearings without a wall (degrees) in a :meth:`GridView.walls_around`
+    answer, leaving out the run that holds skip_bearing_rad (the door the robot came through).
+    360 when no bearing has a wall, 0 when every one has."""
+    walls = np.asarray(walls, dtype=bool)
+    n = len(walls)
+    if n == 0 or not walls.any():
+        return 360.0
+    skip = None if skip_bearing_rad is None else \
+        int(round(skip_bearing_rad / (2.0 * math.pi) * n)) % n
+    start = int(np.flatnonzero(walls)[0])  # runs are read from a wall on, so none wraps
+    widest, run, run_has_skip = 0, 0, False
+    for k in range(start, start + n + 1):
+        i = k % n
+        if k < start + n and not walls[i]:
+            run += 1
+            run_has_skip = run_has_skip or i == skip
+            continue
+        if not run_has_skip:
+            widest = max(widest, run)
+        run, run_has_skip = 0, False
+    return 360.0 * widest / n
 
 
 def order_exits(candidates, grid, from_xy, near_m, far_m, min_free_share):

@@ -7,7 +7,8 @@ state or phase is recorded with its reason, so a run can be explained afterwards
 States (004): START builds the first map (scans), IDLE waits with a healthy map, GOAL navigates,
 LOST waits for tracking to come back (motion stopped), RECOVER frees a robot that the map puts
 inside an obstacle. Phases (000): initial scan -> wall scan -> find exit -> go to the exit -> pass
-through -> done, or gave up with the reason.
+through -> done, or gave up with the reason. Beyond an exit the robot looks around: walls all round
+mean another room of the building (a partition's door), whose exit is found in turn.
 """
 import dataclasses
 import enum
@@ -16,6 +17,7 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
+from sparse_nav.conductor.grid_queries import widest_opening_deg
 from sparse_nav.exit_finder.geometry import boundary_distances, points_in_polygon
 
 
@@ -34,6 +36,7 @@ class Phase(enum.Enum):
     FIND_EXIT = "find_exit"
     GO_TO_EXIT = "go_to_exit"
     PASS_THROUGH = "pass_through"
+    LOOK_AROUND = "look_around"      # beyond an exit: outside, or in another room?
     RETURN_TO_START = "return_to_start"
     DONE = "done"
     GAVE_UP = "gave_up"
@@ -45,7 +48,7 @@ class Phase(enum.Enum):
 
 class ActionKind(enum.Enum):
     SCAN = "scan"            # payload: scan name ("initial", "wall", "random", "relocalise")
-    FIND_EXIT = "find_exit"  # ask the exit finder for an estimate
+    FIND_EXIT = "find_exit"  # ask the exit finder; payload: its viewpoint (None: its default)
     GOAL = "goal"            # payload: (x, y) in the map frame
     CANCEL_GOAL = "cancel_goal"
     STOP = "stop"            # zero velocity / no further drone command
@@ -77,6 +80,9 @@ class Observation:
     # The exit finder's room outline [(x, y), ...] in the current SLAM map; empty when unknown
     # or drawn in another SLAM map.
     room_outline: Tuple = ()
+    # GridView.walls_around at the robot (bearings from the map's x axis), while looking around
+    # beyond an exit; empty without a map or a pose.
+    walls_around: Tuple = ()
     navigator_state: str = ""            # navigator/status state name, lower case
     motion_failed: bool = False          # the motion layer gave up (blocked, refused commands)
     start_requested: bool = False
@@ -113,16 +119,22 @@ class ConductorConfig:
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
     recover_clear_s: float = 10.0        # back inside within this of getting out: the same
                                          # episode, its time counts on (a robot on a cell's edge)
+    max_rooms: int = 3                   # rooms escaped in turn; 1: done after the first exit
+                                         # without looking around
+    room_max_opening_deg: float = 45.0   # beyond an exit, openings no wider than this all round
+                                         # (the door come through aside): another room
+    walls_around_range_m: float = 8.0    # ... walls this close count (the node's grid query)
 
     def validate(self):
         for name in ("max_scan_rounds", "max_exit_attempts", "max_goal_failures",
-                     "max_goal_losses"):
+                     "max_goal_losses", "max_rooms"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
                      "lost_timeout_s", "recover_timeout_s", "recover_clear_s",
                      "left_room_margin_m", "inside_room_margin_m", "rejected_exit_radius_m",
-                     "stall_timeout_s", "stall_progress_m", "exit_near_m"):
+                     "stall_timeout_s", "stall_progress_m", "exit_near_m",
+                     "walls_around_range_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -131,6 +143,9 @@ class ConductorConfig:
         if not 0 <= self.exit_min_free_share <= 1:
             raise ValueError(f"exit_min_free_share must be in [0, 1], got "
                              f"{self.exit_min_free_share}")
+        if not 0 < self.room_max_opening_deg < 360:
+            raise ValueError(f"room_max_opening_deg must be in (0, 360), got "
+                             f"{self.room_max_opening_deg}")
         if not (math.isfinite(self.pass_through_m) and self.pass_through_m >= 0):
             raise ValueError(f"pass_through_m must be finite and >= 0, got {self.pass_through_m}")
 
@@ -178,8 +193,14 @@ class Conductor:
         self.reason = "waiting for start"
         self.history: List[Transition] = []
         self.start_xy: Optional[Tuple[float, float]] = None
+        # Where the present room's exit search looks from: the start, then the place looked
+        # around from in each further room.
+        self.room_origin_xy: Optional[Tuple[float, float]] = None
+        self.rooms = 0
+        self._exit_viewpoint = None  # the exit finder's viewpoint: its default, "robot" later
         self.exit_xy: Optional[Tuple[float, float]] = None
         self._alternatives: List[Tuple[float, float]] = []
+        self._alternatives_map = None  # the SLAM map they were found in
         # Exits passed through without leaving the room, with the SLAM map they were drawn in.
         self._rejected: List[Tuple[Optional[int], Tuple[float, float]]] = []
         self.goal_xy: Optional[Tuple[float, float]] = None
@@ -202,6 +223,7 @@ class Conductor:
         self._scan_kind = None
         self._scan_map_index = None  # the SLAM map when the running scan began
         self._last_tracked_xy: Optional[Tuple[float, float]] = None
+        self._last_walls_around = ()  # the newest look around while tracking
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
@@ -257,7 +279,11 @@ class Conductor:
         return []
 
     def _begin(self, t, obs):
-        self.start_xy = obs.robot_xy
+        self.start_xy = self.room_origin_xy = obs.robot_xy
+        self.rooms = 1
+        self._exit_viewpoint = None
+        self._alternatives = []
+        self._last_walls_around = ()
         self.exit_xy = self.goal_xy = None
         self._rejected = []
         self._scan_rounds = 1
@@ -272,7 +298,19 @@ class Conductor:
         """DONE when tracking is lost while passing through with the last tracked position
         clearly outside the room outline: a robot often loses tracking right after a door, facing
         what it has never seen. Without a loss the pass-through goal decides, because the outline
-        covers only what the scan saw (an L-shaped room's far arm lies outside it)."""
+        covers only what the scan saw (an L-shaped room's far arm lies outside it). Lost while
+        looking around beyond the exit, the last look while tracking decides."""
+        if self.phase == Phase.LOOK_AROUND and not obs.tracking_lost \
+                and len(obs.walls_around):
+            self._last_walls_around = tuple(obs.walls_around)
+        if self.phase == Phase.LOOK_AROUND and obs.tracking_lost \
+                and len(self._last_walls_around):
+            opening = self._widest_opening(self._last_walls_around)
+            if opening > self.config.room_max_opening_deg:
+                self._set(t, State.IDLE, Phase.DONE, f"left the room: tracking lost looking "
+                          f"around beyond the exit, openings up to {opening:.0f} deg wide")
+                return [Action(ActionKind.STOP)]
+            return None
         if self.phase != Phase.PASS_THROUGH or not obs.tracking_lost:
             return None
         outside = distance_outside(self._last_tracked_xy, obs.room_outline)
@@ -379,6 +417,8 @@ class Conductor:
             return []  # the scan was asked for and has not begun yet
         self._scan_started = False
         cut, self._scan_cut = self._scan_cut, False
+        if self.phase == Phase.LOOK_AROUND:
+            return self._looked_around(t, obs)
         if self.phase == Phase.INITIAL_SCAN:
             # A loss that ended in a new SLAM map leaves a map (and a grid) of the part of the
             # room scanned since: scan the whole room again in it while rounds are left; so does
@@ -408,7 +448,48 @@ class Conductor:
         self._exit_requested_s = t
         self._exit_answer = self._exit_paused_s = None
         self._set(t, State.IDLE, Phase.FIND_EXIT, why)
-        return [Action(ActionKind.FIND_EXIT)]
+        return [Action(ActionKind.FIND_EXIT, self._exit_viewpoint)]
+
+    def _widest_opening(self, walls):
+        """The widest opening around the robot but the one toward the exit it came through."""
+        skip = None
+        if self.exit_xy is not None and self._last_tracked_xy is not None:
+            skip = math.atan2(self.exit_xy[1] - self._last_tracked_xy[1],
+                              self.exit_xy[0] - self._last_tracked_xy[0])
+        return widest_opening_deg(walls, skip)
+
+    def _passed_through(self, t):
+        """Beyond the exit: look around there (done at once with max_rooms 1)."""
+        if self.config.max_rooms == 1:
+            self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
+            return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
+        self._last_walls_around = ()
+        self._set(t, State.START, Phase.LOOK_AROUND, "passed through the exit: look around")
+        return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
+
+    def _looked_around(self, t, obs):
+        """Walls all round (but for the door come through): another room, whose exit is looked
+        for from here, the door come through out of the running; else out: done."""
+        walls = tuple(obs.walls_around) or self._last_walls_around
+        if not len(walls):
+            self._set(t, State.IDLE, Phase.DONE, "passed through the exit (no map to look "
+                                                 "around in)")
+            return [Action(ActionKind.STOP)]
+        opening = self._widest_opening(walls)
+        if opening > self.config.room_max_opening_deg:
+            self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: openings up to "
+                                                 f"{opening:.0f} deg wide around")
+            return [Action(ActionKind.STOP)]
+        if self.rooms >= self.config.max_rooms:
+            return self._give_up(t, f"walls all round beyond the exit (openings up to "
+                                    f"{opening:.0f} deg wide) after {self.rooms} rooms")
+        self._rejected.append((obs.slam_map_index, self.exit_xy))
+        self.rooms += 1
+        self.room_origin_xy = obs.robot_xy or self._last_tracked_xy
+        self._exit_viewpoint = "robot"
+        self._exit_attempts = 0
+        return self._ask_exit(t, f"another room beyond the exit (openings up to {opening:.0f} deg "
+                                 f"wide): find its exit ({self.rooms}/{self.config.max_rooms})")
 
     def _find_exit(self, t, obs):
         cfg = self.config
@@ -430,7 +511,12 @@ class Conductor:
         if answered and exit_xy is not None:
             candidates = [c for c in [tuple(exit_xy)] + [tuple(xy) for xy in alternatives]
                           if not self._was_rejected(c, obs.slam_map_index)]
+            # The room before's untried candidates come last (a door into a room with no exit).
+            if self._alternatives_map == obs.slam_map_index:
+                candidates += [c for c in self._alternatives if c not in candidates
+                               and not self._was_rejected(c, obs.slam_map_index)]
         if candidates:
+            self._alternatives_map = obs.slam_map_index
             self.exit_xy = candidates[0]
             self._alternatives = candidates[1:]
             return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
@@ -482,8 +568,9 @@ class Conductor:
                 return self._wrong_exit(
                     t, obs.slam_map_index, f"passed through ({self.exit_xy[0]:.2f}, "
                     f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the room outline: not an exit")
-            self._set(t, State.IDLE, Phase.DONE, "passed through the exit" if self.phase ==
-                      Phase.PASS_THROUGH else "back at the start")
+            if self.phase == Phase.PASS_THROUGH:
+                return self._passed_through(t)
+            self._set(t, State.IDLE, Phase.DONE, "back at the start")
             # Within tolerance the navigator may still hold the goal and publish its path.
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         failure = (f"navigator: {obs.navigator_state}" if obs.navigator_state in _FAILED_NAVIGATION
@@ -540,9 +627,10 @@ class Conductor:
         return self._give_up(t, given_up)
 
     def _beyond_exit(self):
-        """A point pass_through_m past the exit, on the line from the start through the exit."""
+        """A point pass_through_m past the exit, on the line from the room's origin (the start in
+        the first room) through the exit."""
         ex, ey = self.exit_xy
-        sx, sy = self.start_xy if self.start_xy is not None else (0.0, 0.0)
+        sx, sy = self.room_origin_xy if self.room_origin_xy is not None else (0.0, 0.0)
         dx, dy = ex - sx, ey - sy
         norm = math.hypot(dx, dy)
         if norm < 1e-9:

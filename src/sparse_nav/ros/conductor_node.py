@@ -15,15 +15,16 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import OccupancyGrid
 from std_srvs.srv import Trigger, TriggerResponse
 
-from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, ScanRunner,
-                                  ScanRunnerConfig, take_off)
+from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, Phase,
+                                  ScanRunner, ScanRunnerConfig, take_off)
 from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
 from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
 from sparse_nav.ros.robot_io import StepExecutor, TelloClient
 from sparse_nav.scanning import (GROUND_SPEED_M_S, GROUND_TURN_RATE_RAD_S, InitialScanConfig, Step,
-                                 WallScanConfig, initial_scan, random_scan, sway, wall_scan)
+                                 WallScanConfig, circular_scan, initial_scan, random_scan, sway,
+                                 wall_scan)
 from sparse_nav.srv import FindExit
 
 # Navigator action states as the conductor names them.
@@ -150,6 +151,9 @@ class ConductorNode:
             if grid is not None and pose is not None:
                 obs.map_ready = grid.free_cells_near(pose[0], pose[1], 1.0) >= self.min_free_cells
                 obs.robot_in_obstacle = grid.in_obstacle(pose[0], pose[1])
+            looking = self.conductor.phase == Phase.LOOK_AROUND and grid is not None and pose
+            obs.walls_around = tuple(grid.walls_around(
+                pose[0], pose[1], self.config.walls_around_range_m)) if looking else ()
             obs.scan_running = self.scan_thread is not None and self.scan_thread.is_alive()
             obs.start_requested = self.requests["start"]
             obs.stop_requested = self.requests["stop"]
@@ -165,6 +169,8 @@ class ConductorNode:
         grid = self.grid
         if name == "initial":
             return initial_scan(self.initial_config)
+        if name == "look_around":
+            return circular_scan(self.wall_config)
         if name == "relocalise":
             # 004's LOST: look and move around. Each try also turns, so that a robot stuck
             # facing a bare wall ends up looking at the mapped room again.
@@ -215,20 +221,21 @@ class ConductorNode:
             self.scan_stop.set()
             self.scan_thread.join(timeout=60.0)
 
-    def _ask_exit(self):
+    def _ask_exit(self, viewpoint=None):
         def call():
             answer, alternatives, leads_out, outline = None, (), True, ()
             with self.lock:
                 map_index = self.obs.slam_map_index
             try:
                 rospy.wait_for_service(self.exit_service, timeout=10.0)
-                response = rospy.ServiceProxy(self.exit_service, FindExit)(method="")
+                response = rospy.ServiceProxy(self.exit_service, FindExit)(
+                    method="", viewpoint=viewpoint or "")
                 if response.success and response.candidates.exits:
                     ranked = [(p.x, p.y) for p in response.candidates.exits]
                     cfg = self.config
                     with self.lock:
                         grid = self.grid
-                    ordered, leads_out = order_exits(ranked, grid, self.conductor.start_xy,
+                    ordered, leads_out = order_exits(ranked, grid, self.conductor.room_origin_xy,
                                                      cfg.exit_check_near_m, cfg.exit_check_far_m,
                                                      cfg.exit_min_free_share)
                     if ordered != ranked or not leads_out:
@@ -267,7 +274,7 @@ class ConductorNode:
         if action.kind == ActionKind.SCAN:
             self._start_scan(action.payload, pose)
         elif action.kind == ActionKind.FIND_EXIT:
-            self._ask_exit()
+            self._ask_exit(action.payload)
         elif action.kind == ActionKind.GOAL:
             self._send_goal(action.payload)
         elif action.kind == ActionKind.CANCEL_GOAL:

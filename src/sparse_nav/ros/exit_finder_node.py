@@ -160,17 +160,20 @@ class ExitFinderNode:
 
     def _on_find_exit(self, req):
         method = req.method or self.method
-        if method not in METHODS:
-            cand = self._candidates(ExitCandidates.STATUS_BAD_INPUT,
-                                    f"unknown method {method!r}; choose one of "
-                                    f"{', '.join(METHODS)}", rospy.Time.now())
+        viewpoint = req.viewpoint or self.viewpoint
+        if method not in METHODS or viewpoint not in VIEWPOINTS:
+            why = (f"unknown method {method!r}; choose one of {', '.join(METHODS)}"
+                   if method not in METHODS else
+                   f"unknown viewpoint {viewpoint!r}; choose one of {', '.join(VIEWPOINTS)}")
+            cand = self._candidates(ExitCandidates.STATUS_BAD_INPUT, why, rospy.Time.now())
             return FindExitResponse(success=False, candidates=cand)
-        cand = self.run(method)
+        cand = self.run(method, viewpoint)
         return FindExitResponse(success=cand.status == ExitCandidates.STATUS_OK,
                                 candidates=cand)
 
-    def run(self, method):
-        """Runs the finder on the latest cloud, publishes and returns the ExitCandidates."""
+    def run(self, method, viewpoint=None):
+        """Runs the finder on the latest cloud (from viewpoint, default ~viewpoint), publishes
+        and returns the ExitCandidates."""
         with self.run_lock:
             with self.lock:
                 points, stamp, seq = self.points, self.stamp, self.cloud_seq
@@ -180,14 +183,12 @@ class ExitFinderNode:
                 cand = self._candidates(ExitCandidates.STATUS_NO_CLOUD,
                                         "no good cloud received yet", rospy.Time.now())
             else:
-                cand = self._find(points, stamp, method)
+                cand = self._find(points, stamp, method, viewpoint or self.viewpoint)
             self._publish(cand)
             return cand
 
-    def _viewpoint(self):
-        """(x, y) in map_frame to look from, or None to let the finder's config decide."""
-        if self.viewpoint != "robot":
-            return None
+    def _robot_xy(self):
+        """(x, y) of base_frame in map_frame, or None (then the finder looks from the origin)."""
         try:
             tf = self.tf_buffer.lookup_transform(self.map_frame, self.base_frame, rospy.Time(0),
                                                  rospy.Duration(self.tf_timeout_s))
@@ -197,12 +198,13 @@ class ExitFinderNode:
             return None
         return (tf.transform.translation.x, tf.transform.translation.y)
 
-    def _find(self, points, stamp, method):
-        cfg = dataclasses.replace(self.cfg, gap_viewpoint=self.viewpoint
-                                  if self.viewpoint != "robot" else "origin")
+    def _find(self, points, stamp, method, viewpoint):
+        cfg = dataclasses.replace(self.cfg, gap_viewpoint=viewpoint
+                                  if viewpoint != "robot" else "origin")
+        robot_xy = self._robot_xy() if viewpoint == "robot" else None
         try:
             result = find_exit(points, method=method, config=cfg, up_axis="z",
-                               viewpoint=self._viewpoint(), door_gaps=self._recent_door_gaps())
+                               viewpoint=robot_xy, door_gaps=self._recent_door_gaps())
         except ExitFinderError as exc:
             rospy.logwarn_throttle(5.0, f"exit_finder: {exc.status}: {exc}")
             cand = self._candidates(exc.status, str(exc), stamp)

@@ -358,11 +358,13 @@ def test_no_map_to_look_around_in_is_done_after_the_exit():
     assert m.conductor.phase == Phase.DONE and "no map to look around in" in m.conductor.reason
 
 
-def test_tracking_lost_while_looking_around_decides_by_the_last_look():
-    m = looking_around()
-    m.tick(walls_around=WALLS_OUTSIDE)
-    assert kinds(m.tick(tracking_lost=True, walls_around=())) == [ActionKind.STOP]
-    assert m.conductor.phase == Phase.DONE and "tracking lost looking around" in m.conductor.reason
+def test_tracking_lost_looking_around_outside_the_outline_is_done_else_the_last_look_decides():
+    m = looking_around()  # at (6.5, 0), 0.5 m outside ROOM
+    m.tick(robot_xy=(7.5, 0.0), walls_around=WALLS_ROOM)
+    assert kinds(m.tick(tracking_lost=True, walls_around=())) == [ActionKind.CANCEL_GOAL,
+                                                                  ActionKind.STOP]
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "left the room: tracking lost 1.50 m outside its outline")
     m = looking_around()
     m.tick(walls_around=WALLS_ROOM)
     m.tick(tracking_lost=True, walls_around=())

@@ -79,6 +79,10 @@ class ExitFinderTest(unittest.TestCase):
         self.assertIn(before.candidates.status, (ExitCandidates.STATUS_NO_CLOUD,
                                                  ExitCandidates.STATUS_TOO_FEW_POINTS))
         self.assertEqual(len(before.candidates.exits), 0)
+        unknown = find(method="", viewpoint="nowhere")
+        self.assertFalse(unknown.success)
+        self.assertEqual(unknown.candidates.status, ExitCandidates.STATUS_BAD_INPUT)
+        self.assertIn("unknown viewpoint 'nowhere'", unknown.candidates.reason)
 
         rospy.sleep(1.0)
         self._fly(["command", "takeoff"] + to_tello_commands(initial_scan()))
@@ -93,6 +97,11 @@ class ExitFinderTest(unittest.TestCase):
         self.assertTrue(all(a >= b for a, b in zip(cand.scores, cand.scores[1:])),
                         "candidates best first")
         self.assertGreaterEqual(len(cand.room_outline), 3, "a room outline")
+        # From the robot, which stands in the same room after the scan: the same room.
+        from_robot = find(method="", viewpoint="robot").candidates
+        self.assertIn(from_robot.status, (ExitCandidates.STATUS_OK, ExitCandidates.STATUS_NO_EXIT),
+                      f"{from_robot.status}: {from_robot.reason}")
+        self.assertGreaterEqual(len(from_robot.room_outline), 3)
 
         with self.lock:
             estimated_scale, true_scale = self.estimated_scale, self.true_scale

@@ -295,23 +295,16 @@ class Conductor:
         return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
 
     def _left_the_room(self, t, obs):
-        """DONE when tracking is lost while passing through with the last tracked position
-        clearly outside the room outline: a robot often loses tracking right after a door, facing
-        what it has never seen. Without a loss the pass-through goal decides, because the outline
-        covers only what the scan saw (an L-shaped room's far arm lies outside it). Lost while
-        looking around beyond the exit, the last look while tracking decides."""
+        """DONE when tracking is lost while passing through or looking around beyond the exit
+        with the last tracked position clearly outside the room outline: a robot often loses
+        tracking right after a door, facing what it has never seen (a room it has entered has
+        walls to track). Without a loss the pass-through goal and the look around decide,
+        because the outline covers only what the scan saw (an L-shaped room's far arm lies
+        outside it)."""
         if self.phase == Phase.LOOK_AROUND and not obs.tracking_lost \
                 and len(obs.walls_around):
             self._last_walls_around = tuple(obs.walls_around)
-        if self.phase == Phase.LOOK_AROUND and obs.tracking_lost \
-                and len(self._last_walls_around):
-            opening = self._widest_opening(self._last_walls_around)
-            if opening > self.config.room_max_opening_deg:
-                self._set(t, State.IDLE, Phase.DONE, f"left the room: tracking lost looking "
-                          f"around beyond the exit, openings up to {opening:.0f} deg wide")
-                return [Action(ActionKind.STOP)]
-            return None
-        if self.phase != Phase.PASS_THROUGH or not obs.tracking_lost:
+        if self.phase not in (Phase.PASS_THROUGH, Phase.LOOK_AROUND) or not obs.tracking_lost:
             return None
         outside = distance_outside(self._last_tracked_xy, obs.room_outline)
         if outside < self.config.left_room_margin_m:

@@ -27,9 +27,11 @@ def free_port():
         return s.getsockname()[1]
 
 
-def run_mission(world, robot, stress, limit_s, rate_factor, tmp):
-    """One mission; returns the report (or an error entry) with the run's wall time."""
-    out = os.path.join(tmp, f"{world.replace(':', '_')}_{robot}_{'stress' if stress else 'plain'}")
+def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir):
+    """One mission; returns the report (or an error entry) with the run's wall time. A run that
+    leaves no report keeps its ROS logs in failed_logs_dir, for the reason."""
+    name = f"{world.replace(':', '_')}_{robot}_{'stress' if stress else 'plain'}"
+    out = os.path.join(tmp, name)
     args = ["roslaunch", "-p", str(free_port()), "sparse_nav", "demo.launch", f"world:={world}",
             f"robot:={robot}", f"output_dir:={out}", f"rate_factor:={rate_factor}",
             f"sim_time_limit_s:={limit_s}"]
@@ -37,7 +39,8 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp):
         losses = [STRESS_LOSS_PERIOD_S * k for k in range(1, int(limit_s // STRESS_LOSS_PERIOD_S))]
         args += [f"force_loss_at_s:={json.dumps(losses)}",
                  f"slam_message_drop_fraction:={STRESS_DROP_FRACTION}"]
-    env = dict(os.environ, ROS_HOME=os.path.join(tmp, "ros_home"))
+    ros_home = os.path.join(tmp, "ros_home")
+    env = dict(os.environ, ROS_HOME=ros_home)
     start = time.monotonic()
     try:
         subprocess.run(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
@@ -49,7 +52,11 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp):
         with open(os.path.join(out, "report.json")) as f:
             report = json.load(f)
     except (OSError, ValueError) as exc:
-        return {"world": world, "robot": robot, "error": f"no report: {exc}"}
+        logs, latest = os.path.join(failed_logs_dir, name), os.path.join(ros_home, "log", "latest")
+        shutil.rmtree(logs, ignore_errors=True)
+        if os.path.isdir(latest):
+            shutil.copytree(latest, logs, ignore_dangling_symlinks=True)
+        return {"world": world, "robot": robot, "error": f"no report: {exc}", "logs": logs}
     finally:
         shutil.rmtree(out, ignore_errors=True)
     return {"world": world, "robot": robot, "success": report["success"],
@@ -82,6 +89,7 @@ def main(argv=None):
         print("bench_mission: roslaunch not found; source the workspace (make bench does)")
         return 1
     tmp = tempfile.mkdtemp(prefix="bench_mission_")
+    failed_logs = os.path.splitext(args.out)[0] + "_failed_logs"
     table = {}
     try:
         for stress in ([False] if args.no_stress else [False, True]):
@@ -89,7 +97,7 @@ def main(argv=None):
                 runs = []
                 for seed in range(args.first_seed, args.first_seed + args.worlds):
                     run = run_mission(f"random:{seed}", robot, stress, args.sim_time_limit_s,
-                                      args.rate_factor, tmp)
+                                      args.rate_factor, tmp, failed_logs)
                     print(json.dumps(run), flush=True)
                     runs.append(run)
                 key = f"{robot}{' stressed' if stress else ''}"

@@ -89,6 +89,11 @@ def test_exits_with_free_space_beyond_go_first_in_the_finders_order(room_with_do
     assert order_exits(ranked[:2], room_with_door, (2.0, 2.0), 0.3, 1.2, 0.3) == \
         (ranked[:2], False)
     assert order_exits(ranked, None, (2.0, 2.0), 0.3, 1.2, 0.3) == (ranked, True)
+    # Off the map: left out, whatever the finder's rank.
+    assert order_exits([(158.7, -109.1)] + ranked[2:], room_with_door, (2.0, 2.0), 0.3, 1.2,
+                       0.3) == (ranked[2:], True)
+    assert order_exits([(158.7, -109.1)], room_with_door, (2.0, 2.0), 0.3, 1.2, 0.3) == \
+        ([], False)
     assert order_exits(ranked, room_with_door, None, 0.3, 1.2, 0.3) == (ranked, True)
 
 

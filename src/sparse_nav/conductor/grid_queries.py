@@ -123,10 +123,12 @@ def widest_opening_deg(walls, skip_bearing_rad=None):
 def order_exits(candidates, grid, from_xy, near_m, far_m, min_free_share):
     """(ordered, any_leads_out): the finder's ranked exits, those the map shows free space beyond
     (free_share_beyond >= min_free_share) first, each group in the finder's order: a wall, a box
-    or furniture is not a way out, however door-like its outline. Without a grid or a start, the
-    finder's order, taken as leading out."""
+    or furniture is not a way out, however door-like its outline. Exits off the map are left out
+    (a room's exit lies in its walls, which are on the map; one far off comes from stray points).
+    Without a grid or a start, the finder's order, taken as leading out."""
     if grid is None or from_xy is None:
         return list(candidates), True
+    candidates = [c for c in candidates if grid.cell(*c) is not None]
     leads_out = [grid.free_share_beyond(c, from_xy, near_m, far_m) >= min_free_share
                  for c in candidates]
     ordered = [c for c, ok in zip(candidates, leads_out) if ok] + \

@@ -239,10 +239,12 @@ class ConductorNode:
                                                      cfg.exit_check_near_m, cfg.exit_check_far_m,
                                                      cfg.exit_min_free_share)
                     if ordered != ranked or not leads_out:
-                        rospy.loginfo("conductor: exits in order, free space beyond first: %s%s",
+                        rospy.loginfo("conductor: exits in order, free space beyond first, those "
+                                      "off the map left out: %s%s",
                                       [(round(x, 2), round(y, 2)) for x, y in ordered],
                                       "" if leads_out else " (none has free space beyond)")
-                    answer, alternatives = ordered[0], tuple(ordered[1:])
+                    if ordered:
+                        answer, alternatives = ordered[0], tuple(ordered[1:])
                     outline = tuple((p.x, p.y) for p in response.candidates.room_outline)
                 rospy.loginfo("conductor: exit finder: %s (%s)", response.candidates.status,
                               response.candidates.reason)

@@ -193,8 +193,9 @@ ROOM = ((-1.0, -1.0), (6.0, -1.0), (6.0, 1.0), (-1.0, 1.0))  # the finder's room
 
 
 def passing_through(config=None):
-    """A mission passing through the exit at (5, 0) of ROOM, the robot at (5.5, 0)."""
+    """A mission in SLAM map 0 passing through the exit at (5, 0) of ROOM, the robot at (5.5, 0)."""
     m = Mission(config or ConductorConfig(wall_scan_enabled=False))
+    m.obs.slam_map_index = 0
     m.tick(start_requested=True)
     m.run_scan()
     m.tick(exit_answered=True, exit_xy=(5.0, 0.0), room_outline=ROOM)
@@ -804,3 +805,71 @@ def test_a_refused_or_unanswered_takeoff_is_not_flying_and_says_why():
     flying, why = take_off(drone.send)
     assert not flying and why == "command -> timeout"
     assert drone.sent == ["command"], "no takeoff without SDK mode"
+
+
+def on_the_way_to_the_exit(config=None):
+    """A mission in SLAM map 0 driving to the exit (5, 0) from (0, 0), then lost and back in the
+    new SLAM map 1."""
+    m = Mission(config or ConductorConfig(wall_scan_enabled=False, merge_wait_s=20.0))
+    m.obs.slam_map_index = 0
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 4.0),))
+    m.tick(robot_xy=(2.0, 0.0), navigator_state="following")
+    m.tick(tracking_lost=True)
+    m.tick(scan_running=True)
+    return m
+
+
+def test_tracking_back_in_a_new_slam_map_relocalises_until_it_merges_back():
+    m = on_the_way_to_the_exit()
+    # Back, but in map 1: the exit's coordinates mean nothing there; no goal is sent.
+    actions = m.tick(tracking_lost=False, slam_map_index=1, robot_xy=(0.1, 0.0))
+    assert actions == [] and m.conductor.state == State.LOST
+    assert "not the exit's map 0: relocalising until they merge" in m.conductor.reason
+    assert [(a.kind, a.payload) for a in m.tick(scan_running=False)] == [
+        (ActionKind.SCAN, "relocalise")]
+    m.tick(scan_running=True)
+    # SLAM merges map 1 back into map 0: the goal is resumed in its own map.
+    actions = m.tick(slam_map_index=0, robot_xy=(2.1, 0.0))
+    assert (ActionKind.GOAL, (5.0, 0.0)) in [(a.kind, a.payload) for a in actions]
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
+
+
+def test_no_merge_back_on_the_way_scans_again_in_the_new_map_a_bounded_number_of_times():
+    m = on_the_way_to_the_exit(ConductorConfig(wall_scan_enabled=False, merge_wait_s=20.0,
+                                               max_rescans=1))
+    m.tick(tracking_lost=False, slam_map_index=1, robot_xy=(0.1, 0.0))
+    m.tick(dt=15.0)
+    actions = m.tick(dt=10.0)
+    assert [(a.kind, a.payload) for a in actions] == [
+        (ActionKind.STOP, None), (ActionKind.CANCEL_GOAL, None), (ActionKind.SCAN, "initial")]
+    assert (m.conductor.state, m.conductor.phase) == (State.START, Phase.INITIAL_SCAN)
+    assert "no merge back into the exit's SLAM map within 20 s" in m.conductor.reason
+    assert m.conductor.room_origin_xy == (0.1, 0.0)
+    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
+    # The first map's other candidate is not carried into the new one.
+    actions = m.tick(exit_answered=True, exit_xy=(3.0, 3.0), exit_alternatives=())
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (3.0, 3.0))]
+    assert m.conductor._alternatives == []
+    # Lost again into map 2, no merge back: the rescans are used up.
+    m.tick(tracking_lost=True)
+    m.tick(tracking_lost=False, slam_map_index=2, scan_running=False)
+    m.tick(dt=25.0)
+    assert m.conductor.phase == Phase.GAVE_UP
+    assert "after 1 scans in new maps" in m.conductor.reason
+
+
+def test_no_merge_back_past_the_exit_looks_around_in_the_new_map():
+    m = passing_through(ConductorConfig(wall_scan_enabled=False, merge_wait_s=5.0))
+    m.tick(tracking_lost=True, robot_xy=(5.2, 0.0), room_outline=())  # 0.2 m past: not out
+    assert m.conductor.state == State.LOST
+    m.tick(tracking_lost=False, slam_map_index=7)
+    actions = m.tick(dt=6.0)
+    assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.SCAN, "look_around")
+    assert (m.conductor.state, m.conductor.phase) == (State.START, Phase.LOOK_AROUND)
+    m.tick(scan_running=True)
+    # Walls all round: another room; the door's place in map 7 is unknown, so nothing is
+    # rejected and no opening is left out.
+    m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    assert m.conductor.phase == Phase.FIND_EXIT and m.conductor._rejected == []

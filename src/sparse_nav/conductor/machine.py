@@ -119,6 +119,10 @@ class ConductorConfig:
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
     recover_clear_s: float = 10.0        # back inside within this of getting out: the same
                                          # episode, its time counts on (a robot on a cell's edge)
+    merge_wait_s: float = 20.0           # tracking back in another SLAM map than the exit's:
+                                         # relocalise this long for a merge back, then go on in
+                                         # the new map (look around beyond the exit, else scan)
+    max_rescans: int = 2                 # ... initial scans in a new map before giving up
     max_rooms: int = 3                   # rooms escaped in turn; 1: done after the first exit
                                          # without looking around
     room_max_opening_deg: float = 45.0   # beyond an exit, openings no wider than this all round
@@ -127,14 +131,14 @@ class ConductorConfig:
 
     def validate(self):
         for name in ("max_scan_rounds", "max_exit_attempts", "max_goal_failures",
-                     "max_goal_losses", "max_rooms"):
+                     "max_goal_losses", "max_rooms", "max_rescans"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
                      "lost_timeout_s", "recover_timeout_s", "recover_clear_s",
                      "left_room_margin_m", "inside_room_margin_m", "rejected_exit_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m",
-                     "walls_around_range_m"):
+                     "walls_around_range_m", "merge_wait_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -200,7 +204,10 @@ class Conductor:
         self._exit_viewpoint = None  # the exit finder's viewpoint: its default, "robot" later
         self.exit_xy: Optional[Tuple[float, float]] = None
         self._alternatives: List[Tuple[float, float]] = []
-        self._alternatives_map = None  # the SLAM map they were found in
+        self._alternatives_map = None  # the SLAM map they (and exit_xy) were found in
+        self._merge_wait_since_s = None  # tracking back in another map than the exit's, since
+        self._rescans = 0
+        self._door_xy = None  # the exit come through, in the map the robot looks around in
         # Exits passed through without leaving the room, with the SLAM map they were drawn in.
         self._rejected: List[Tuple[Optional[int], Tuple[float, float]]] = []
         self.goal_xy: Optional[Tuple[float, float]] = None
@@ -283,6 +290,8 @@ class Conductor:
         self.rooms = 1
         self._exit_viewpoint = None
         self._alternatives = []
+        self._alternatives_map = self._merge_wait_since_s = None
+        self._rescans = 0
         self._last_walls_around = ()
         self.exit_xy = self.goal_xy = None
         self._rejected = []
@@ -333,6 +342,9 @@ class Conductor:
             if not obs.scan_running:
                 return [self._scan("relocalise")]
             return []
+        if self.state == State.LOST and self._goal_in_another_map(obs):
+            return self._wait_for_merge(t, obs)
+        self._merge_wait_since_s = None
         if self.state == State.LOST:
             self._set(t, self._resume_state, self.phase, "SLAM tracking back")
             actions = []
@@ -383,6 +395,46 @@ class Conductor:
             self._set(t, State.RECOVER, self.phase, "the map puts the robot inside an obstacle")
             return [Action(ActionKind.STOP), Action(ActionKind.RECOVER_MOTION)]
         return None
+
+    def _goal_in_another_map(self, obs):
+        """Tracking is back on the way to or through an exit, but in another SLAM map than the
+        one the exit was found in: its coordinates mean nothing there."""
+        return (self._resume_state == State.GOAL
+                and self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH)
+                and None not in (self._alternatives_map, obs.slam_map_index)
+                and obs.slam_map_index != self._alternatives_map)
+
+    def _wait_for_merge(self, t, obs):
+        """Relocalise (stay LOST) until SLAM merges the new map back into the exit's, at most
+        merge_wait_s; then go on in the new map: through the exit already, look around there;
+        else scan the room again and find the exit in it."""
+        cfg = self.config
+        if self._merge_wait_since_s is None:
+            self._merge_wait_since_s = t
+            self._set(t, State.LOST, self.phase, f"SLAM tracking back in map "
+                      f"{obs.slam_map_index}, not the exit's map {self._alternatives_map}: "
+                      f"relocalising until they merge")
+        if t - self._merge_wait_since_s <= cfg.merge_wait_s:
+            return [] if obs.scan_running else [self._scan("relocalise")]
+        self._merge_wait_since_s = None
+        stop = [Action(ActionKind.STOP)] if obs.scan_running else []
+        why = f"no merge back into the exit's SLAM map within {cfg.merge_wait_s:g} s"
+        if self.phase == Phase.PASS_THROUGH:
+            self._door_xy = None  # its place in the new map is unknown
+            self._last_walls_around = ()
+            self._set(t, State.START, Phase.LOOK_AROUND, f"{why}, past the exit: look around "
+                                                         f"in the new map")
+            return stop + [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
+        if self._rescans >= cfg.max_rescans:
+            return stop + self._give_up(t, f"{why}, after {self._rescans} scans in new maps")
+        self._rescans += 1
+        self._scan_rounds = 1
+        self._exit_attempts = 0
+        self.room_origin_xy = obs.robot_xy
+        self._alternatives = []
+        self._set(t, State.START, Phase.INITIAL_SCAN, f"{why}: scan the room again in the new "
+                                                      f"map ({self._rescans}/{cfg.max_rescans})")
+        return stop + [Action(ActionKind.CANCEL_GOAL), self._scan("initial")]
 
     def _count_goal_loss(self):
         """A loss on the way to an exit counts when the robot came no closer since the last one
@@ -446,9 +498,9 @@ class Conductor:
     def _widest_opening(self, walls):
         """The widest opening around the robot but the one toward the exit it came through."""
         skip = None
-        if self.exit_xy is not None and self._last_tracked_xy is not None:
-            skip = math.atan2(self.exit_xy[1] - self._last_tracked_xy[1],
-                              self.exit_xy[0] - self._last_tracked_xy[0])
+        if self._door_xy is not None and self._last_tracked_xy is not None:
+            skip = math.atan2(self._door_xy[1] - self._last_tracked_xy[1],
+                              self._door_xy[0] - self._last_tracked_xy[0])
         return widest_opening_deg(walls, skip)
 
     def _passed_through(self, t):
@@ -457,6 +509,7 @@ class Conductor:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         self._last_walls_around = ()
+        self._door_xy = self.exit_xy
         self._set(t, State.START, Phase.LOOK_AROUND, "passed through the exit: look around")
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
 
@@ -476,7 +529,8 @@ class Conductor:
         if self.rooms >= self.config.max_rooms:
             return self._give_up(t, f"walls all round beyond the exit (openings up to "
                                     f"{opening:.0f} deg wide) after {self.rooms} rooms")
-        self._rejected.append((obs.slam_map_index, self.exit_xy))
+        if self._door_xy is not None:
+            self._rejected.append((obs.slam_map_index, self._door_xy))
         self.rooms += 1
         self.room_origin_xy = obs.robot_xy or self._last_tracked_xy
         self._exit_viewpoint = "robot"

@@ -332,7 +332,7 @@ def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_
         Phase.DONE, "passed through the exit: openings up to 150 deg wide around")
 
 
-def test_a_room_without_an_exit_sends_the_robot_back_to_the_first_rooms_other_candidates():
+def test_the_first_rooms_untried_candidates_come_after_the_new_rooms():
     m = Mission(ConductorConfig(wall_scan_enabled=False))
     m.tick(start_requested=True)
     m.run_scan()
@@ -341,9 +341,25 @@ def test_a_room_without_an_exit_sends_the_robot_back_to_the_first_rooms_other_ca
     m.tick(robot_xy=(6.5, 0.0), navigator_state="reached")
     m.tick(scan_running=True, navigator_state="")
     m.tick(scan_running=False, walls_around=WALLS_ROOM)
-    # Only the door come through in the new room: the first room's other candidate is next.
+    actions = m.tick(exit_answered=True, exit_xy=(9.0, 3.0), exit_alternatives=((5.0, 0.1),))
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (9.0, 3.0))]
+    # The door come through is out; the first room's other candidate is left for a room
+    # without an exit of its own (the new room's candidate fails).
+    assert m.conductor._alternatives == [(0.0, 5.0)]
+
+
+def test_walls_around_without_an_exit_but_the_door_come_through_are_no_room_done():
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_ROOM)
     actions = m.tick(exit_answered=True, exit_xy=(5.0, 0.1), exit_alternatives=())
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (0.0, 5.0))]
+    assert kinds(actions) == [ActionKind.STOP]
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "passed through the exit: the walls around hold no exit but the door come "
+                    "through")
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    m.tick(exit_answered=True, exit_xy=None)
+    assert m.conductor.phase == Phase.DONE
 
 
 def test_an_opening_only_toward_the_door_come_through_is_another_room():

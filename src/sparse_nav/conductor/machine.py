@@ -47,7 +47,8 @@ class Phase(enum.Enum):
 
 
 class ActionKind(enum.Enum):
-    SCAN = "scan"            # payload: scan name ("initial", "wall", "random", "relocalise")
+    SCAN = "scan"            # payload: scan name ("initial", "wall", "random", "relocalise",
+                             # "look_around")
     FIND_EXIT = "find_exit"  # ask the exit finder; payload: its viewpoint (None: its default)
     GOAL = "goal"            # payload: (x, y) in the map frame
     CANCEL_GOAL = "cancel_goal"
@@ -208,6 +209,7 @@ class Conductor:
         self._merge_wait_since_s = None  # tracking back in another map than the exit's, since
         self._rescans = 0
         self._door_xy = None  # the exit come through, in the map the robot looks around in
+        self._room_unconfirmed = False  # walls all round, no exit of theirs found yet
         # Exits passed through without leaving the room, with the SLAM map they were drawn in.
         self._rejected: List[Tuple[Optional[int], Tuple[float, float]]] = []
         self.goal_xy: Optional[Tuple[float, float]] = None
@@ -268,6 +270,8 @@ class Conductor:
             return out
         if not obs.tracking_lost and obs.robot_xy is not None:
             self._last_tracked_xy = tuple(obs.robot_xy)
+            if self.phase == Phase.LOOK_AROUND and len(obs.walls_around):
+                self._last_walls_around = tuple(obs.walls_around)
         if self.phase == Phase.FIND_EXIT and obs.exit_answered:
             # Seen once: an answer that arrives while lost or recovering is acted on after.
             self._exit_answer = (obs.exit_xy, tuple(obs.exit_alternatives), obs.exit_leads_out)
@@ -293,6 +297,7 @@ class Conductor:
         self._alternatives_map = self._merge_wait_since_s = None
         self._rescans = 0
         self._last_walls_around = ()
+        self._room_unconfirmed = False
         self.exit_xy = self.goal_xy = None
         self._rejected = []
         self._scan_rounds = 1
@@ -310,9 +315,6 @@ class Conductor:
         walls to track). Without a loss the pass-through goal and the look around decide,
         because the outline covers only what the scan saw (an L-shaped room's far arm lies
         outside it)."""
-        if self.phase == Phase.LOOK_AROUND and not obs.tracking_lost \
-                and len(obs.walls_around):
-            self._last_walls_around = tuple(obs.walls_around)
         if self.phase not in (Phase.PASS_THROUGH, Phase.LOOK_AROUND) or not obs.tracking_lost:
             return None
         outside = distance_outside(self._last_tracked_xy, obs.room_outline)
@@ -532,6 +534,7 @@ class Conductor:
         if self._door_xy is not None:
             self._rejected.append((obs.slam_map_index, self._door_xy))
         self.rooms += 1
+        self._room_unconfirmed = True
         self.room_origin_xy = obs.robot_xy or self._last_tracked_xy
         self._exit_viewpoint = "robot"
         self._exit_attempts = 0
@@ -558,6 +561,15 @@ class Conductor:
         if answered and exit_xy is not None:
             candidates = [c for c in [tuple(exit_xy)] + [tuple(xy) for xy in alternatives]
                           if not self._was_rejected(c, obs.slam_map_index)]
+        if answered and self._room_unconfirmed:
+            if not candidates:
+                # Walls all round, yet the finder sees no room with an exit in them but the door
+                # come through: the space between a building and what stands beyond its exit.
+                self._set(t, State.IDLE, Phase.DONE, "passed through the exit: the walls around "
+                                                     "hold no exit but the door come through")
+                return [Action(ActionKind.STOP)]
+            self._room_unconfirmed = False
+        if candidates:
             # The room before's untried candidates come last (a door into a room with no exit).
             if self._alternatives_map == obs.slam_map_index:
                 candidates += [c for c in self._alternatives if c not in candidates

@@ -151,7 +151,8 @@ class ConductorNode:
             if grid is not None and pose is not None:
                 obs.map_ready = grid.free_cells_near(pose[0], pose[1], 1.0) >= self.min_free_cells
                 obs.robot_in_obstacle = grid.in_obstacle(pose[0], pose[1])
-            looking = self.conductor.phase == Phase.LOOK_AROUND and grid is not None and pose
+            looking = (self.conductor.phase == Phase.LOOK_AROUND and grid is not None
+                       and pose is not None)
             obs.walls_around = tuple(grid.walls_around(
                 pose[0], pose[1], self.config.walls_around_range_m)) if looking else ()
             obs.scan_running = self.scan_thread is not None and self.scan_thread.is_alive()

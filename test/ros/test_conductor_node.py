@@ -106,11 +106,17 @@ class ConductorNodeTest(unittest.TestCase):
         phases = [s.phase for s in states]
         trail = [(s.state, s.phase, s.reason) for s in states]
         self.assertEqual(phases[-1], "done", f"the mission ends done: {trail}")
-        order = ["initial_scan", "find_exit", "go_to_exit", "pass_through", "look_around", "done"]
-        seen = [p for p in order if p in phases]
-        self.assertEqual(seen, order, f"every phase, in order: {trail}")
-        self.assertEqual([p for p in phases if p in order], sorted(
-            [p for p in phases if p in order], key=order.index), f"phases never go back: {trail}")
+        # Up to the look around beyond the exit: every phase, in order, never going back. What
+        # the look around decides depends on the map (without one, done; the stand-in exit lies
+        # inside the room, so walls all round send the conductor to the finder again).
+        order = ["initial_scan", "find_exit", "go_to_exit", "pass_through", "look_around"]
+        self.assertIn("look_around", phases, f"the robot looks around beyond the exit: {trail}")
+        until_look = phases[:phases.index("look_around") + 1]
+        self.assertEqual([p for p in order if p in until_look], order,
+                         f"every phase, in order: {trail}")
+        self.assertEqual([p for p in until_look if p in order], sorted(
+            [p for p in until_look if p in order], key=order.index),
+            f"phases never go back: {trail}")
         self.assertIn("LOST", [s.state for s in states], f"the forced loss is seen: {trail}")
         self.assertTrue(all(s.reason for s in states), "every state carries its reason")
         self.assertEqual(commands[:2], ["command", "takeoff"], "the drone takes off first")

@@ -58,7 +58,8 @@ def plot_grid(path, world, cells, resolution_m, origin_xy, t_truth_map, title=""
 
     cells: (rows, cols) int8, row 0 at the grid's lowest y, 100 occupied / 0 free / -1 unknown;
     origin_xy: the grid origin in its own (map) frame; t_truth_map: 4x4 map -> world transform.
-    Free cells are light, occupied dark, unknown transparent; true walls are drawn over them.
+    Free cells are light, occupied dark, unknown transparent; true walls are drawn over them. An
+    empty grid (SLAM has just started a new map) gives the walls alone, and says so.
     """
     rows, cols = cells.shape
     image = np.full((rows, cols, 4), 0.0)
@@ -70,8 +71,11 @@ def plot_grid(path, world, cells, resolution_m, origin_xy, t_truth_map, title=""
     fig, ax = plt.subplots(figsize=(8, 8), dpi=100)
     extent = (origin_xy[0], origin_xy[0] + cols * resolution_m,
               origin_xy[1], origin_xy[1] + rows * resolution_m)
-    artist = ax.imshow(image, origin="lower", extent=extent, interpolation="nearest")
-    artist.set_transform(transform + ax.transData)
+    if cells.size:
+        artist = ax.imshow(image, origin="lower", extent=extent, interpolation="nearest")
+        artist.set_transform(transform + ax.transData)
+    else:
+        title += " (the grid is empty)"
     for x1, y1, x2, y2 in world.wall_segments():
         ax.plot([x1, x2], [y1, y2], color="red", linewidth=1, alpha=0.8)
     for exit_ in world.exits:

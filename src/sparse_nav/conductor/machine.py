@@ -422,11 +422,9 @@ class Conductor:
         stop = [Action(ActionKind.STOP)] if obs.scan_running else []
         why = f"no merge back into the exit's SLAM map within {cfg.merge_wait_s:g} s"
         if self.phase == Phase.PASS_THROUGH:
-            self._door_xy = None  # its place in the new map is unknown
-            self._last_walls_around = ()
-            self._set(t, State.START, Phase.LOOK_AROUND, f"{why}, past the exit: look around "
-                                                         f"in the new map")
-            return stop + [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
+            # The door's place in the new map is unknown.
+            return stop + self._look_around(t, f"{why}, past the exit: look around in the new "
+                                               f"map", door_xy=None)
         if self._rescans >= cfg.max_rescans:
             return stop + self._give_up(t, f"{why}, after {self._rescans} scans in new maps")
         self._rescans += 1
@@ -505,14 +503,15 @@ class Conductor:
                               self._door_xy[0] - self._last_tracked_xy[0])
         return widest_opening_deg(walls, skip)
 
-    def _passed_through(self, t):
-        """Beyond the exit: look around there (done at once with max_rooms 1)."""
+    def _look_around(self, t, why, door_xy):
+        """Beyond the exit: look around there, door_xy the door come through (None where its
+        place in the present map is unknown); done at once with max_rooms 1."""
         if self.config.max_rooms == 1:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         self._last_walls_around = ()
-        self._door_xy = self.exit_xy
-        self._set(t, State.START, Phase.LOOK_AROUND, "passed through the exit: look around")
+        self._door_xy = door_xy
+        self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
 
     def _looked_around(self, t, obs):
@@ -628,7 +627,7 @@ class Conductor:
                     t, obs.slam_map_index, f"passed through ({self.exit_xy[0]:.2f}, "
                     f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the room outline: not an exit")
             if self.phase == Phase.PASS_THROUGH:
-                return self._passed_through(t)
+                return self._look_around(t, "passed through the exit: look around", self.exit_xy)
             self._set(t, State.IDLE, Phase.DONE, "back at the start")
             # Within tolerance the navigator may still hold the goal and publish its path.
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]

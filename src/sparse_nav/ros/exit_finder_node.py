@@ -156,7 +156,7 @@ class ExitFinderNode:
         with self.lock:
             fresh = self.cloud_seq != self.run_seq
         if fresh:
-            self.run(self.method)
+            self.run(self.method, self.viewpoint)
 
     def _on_find_exit(self, req):
         method = req.method or self.method
@@ -171,8 +171,8 @@ class ExitFinderNode:
         return FindExitResponse(success=cand.status == ExitCandidates.STATUS_OK,
                                 candidates=cand)
 
-    def run(self, method, viewpoint=None):
-        """Runs the finder on the latest cloud (from viewpoint, default ~viewpoint), publishes
+    def run(self, method, viewpoint):
+        """Runs the finder on the latest cloud from viewpoint (one of VIEWPOINTS), publishes
         and returns the ExitCandidates."""
         with self.run_lock:
             with self.lock:
@@ -183,7 +183,7 @@ class ExitFinderNode:
                 cand = self._candidates(ExitCandidates.STATUS_NO_CLOUD,
                                         "no good cloud received yet", rospy.Time.now())
             else:
-                cand = self._find(points, stamp, method, viewpoint or self.viewpoint)
+                cand = self._find(points, stamp, method, viewpoint)
             self._publish(cand)
             return cand
 

@@ -251,6 +251,9 @@ class DroneMoveScale:
     be on its way along the move (up to a camera frame late, 10 % of a 0.3 m move). Commands and
     answers travel on two topics, so an answer can overtake its own command; such an answer is
     kept and closes the next command, so that later answers still pair with their own commands.
+    An answer with no command before it may also answer a command this node never heard (sent
+    before it subscribed). Then a second answer comes before the next command, and it is the
+    answer of the command thought answered: taking it as such puts the pairing back in step.
     """
 
     def __init__(self):
@@ -259,12 +262,15 @@ class DroneMoveScale:
         self._early_answers = 0
         self._open_move = None  # (start position, metres) awaiting the pose after its answer
         self._settling = False  # an answer came: the next pose is where the drone stopped
+        self._thought_answered = None  # (command, start) closed by an early answer, until the next
 
     def on_command(self, text, current_position):
         if self._early_answers:
-            self._early_answers -= 1  # answered already: where it went is unknown
+            self._early_answers -= 1  # answered already, unless another answer comes first
             self._start_pose = current_position
+            self._thought_answered = (text.strip(), current_position)
             return
+        self._thought_answered = None
         self._pending.append(text.strip())
         if len(self._pending) == 1:
             self._start_pose = current_position
@@ -274,14 +280,19 @@ class DroneMoveScale:
         self._start_pose = None
         self._open_move = None
         self._settling = False
+        self._thought_answered = None
 
     def on_response(self, response, current_position):
         """Notes the answer; a successful move with a known start waits for on_pose."""
-        if not self._pending:
+        if self._pending:
+            command = self._pending.pop(0)
+            start = self._start_pose
+        elif self._thought_answered is not None:
+            (command, start), self._thought_answered = self._thought_answered, None
+        else:
             self._early_answers += 1
             return
-        command = self._pending.pop(0)
-        start, self._start_pose = self._start_pose, current_position
+        self._start_pose = current_position
         self._settling = True
         match = _MOVE.match(command)
         self._open_move = None

@@ -166,6 +166,20 @@ def test_an_answer_that_overtakes_its_command_does_not_shift_the_pairing():
     assert moves.on_pose(np.array([2.0, 0.1, 0.0])) is None  # a turn, not a 0.1-unit move
 
 
+def test_an_answer_to_a_command_never_heard_does_not_shift_the_pairing_for_good():
+    moves = DroneMoveScale()
+    moves.on_response("ok", np.zeros(3))        # "command" was sent before the bridge listened
+    moves.on_command("takeoff", np.zeros(3))    # taken as answered by that "ok" ...
+    moves.on_response("ok", np.zeros(3))        # ... until its own answer comes
+    moves.on_command("forward 30", np.zeros(3))
+    moves.on_response("ok", np.array([0.1, 0.0, 0.0]))
+    assert moves.on_pose(np.array([0.1, 0.0, 0.0])) == (pytest.approx(0.1), 0.3)
+    for step in range(2, 5):
+        moves.on_command("forward 30", np.array([0.1 * (step - 1), 0.0, 0.0]))
+        moves.on_response("ok", np.array([0.1 * step, 0.0, 0.0]))
+        assert moves.on_pose(np.array([0.1 * step, 0.0, 0.0])) == (pytest.approx(0.1), 0.3)
+
+
 def test_config_validation():
     with pytest.raises(ValueError, match="pose_timeout_s"):
         BridgeConfig(pose_timeout_s=0).validate()

@@ -59,10 +59,14 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
         return {"world": world, "robot": robot, "error": f"no report: {exc}", "logs": logs}
     finally:
         shutil.rmtree(out, ignore_errors=True)
+    scale = report.get("scale") or {}
     return {"world": world, "robot": robot, "success": report["success"],
             "sim_time_s": report["sim_time_s"], "tracking_losses": report["tracking_losses"],
             "final_phase": report["final_phase"], "final_reason": report["final_reason"],
-            "exit_error_m": report["exit_error_m"], "wall_s": round(wall_s, 1)}
+            "exit_error_m": report["exit_error_m"], "wall_s": round(wall_s, 1),
+            # A map built at the wrong scale fails the mission for reasons far from the scale.
+            "scale_samples": scale.get("samples"),
+            "scale_relative_error": scale.get("relative_error")}
 
 
 def summarise(runs):

@@ -4,6 +4,7 @@ import math
 import numpy as np
 
 from sparse_nav.sim.world import point_in_polygon
+from sparse_nav.transforms import invert, planar, yaw_of
 
 
 def path_length_m(track):
@@ -33,3 +34,12 @@ def evaluate(world, final_phase, true_track, exit_truth_xy):
             "path_length_m": round(path_length_m(true_track), 3),
             "exit_error_m": (None if exit_truth_xy is None
                              else round(exit_error_m(world, exit_truth_xy), 3))}
+
+
+def planar_alignment(t_truth_base, t_map_base):
+    """4x4 map -> truth frame that puts the estimated base pose on the true one, in the x-y plane.
+
+    Heights, roll and pitch are left out: the summary and the exit error are top views."""
+    def flat(t):
+        return planar(t[0, 3], t[1, 3], 0.0, yaw_of(t))
+    return flat(t_truth_base) @ invert(flat(t_map_base))

@@ -1,8 +1,11 @@
 """Mission judgement against ground truth."""
+import numpy as np
 import pytest
 
-from sparse_nav.mission_report import evaluate, exit_error_m, left_the_room, path_length_m
+from sparse_nav.mission_report import (evaluate, exit_error_m, left_the_room, path_length_m,
+                                       planar_alignment)
 from sparse_nav.sim.world import load_world
+from sparse_nav.transforms import make_transform, planar, quaternion_to_matrix
 
 
 def test_success_needs_done_and_the_robot_outside():
@@ -24,3 +27,13 @@ def test_lengths_and_errors():
     assert path_length_m([(0, 0), (3, 4), (3, 5)]) == pytest.approx(6.0)
     assert path_length_m([(1, 1)]) == 0.0
     assert exit_error_m(load_world("one_room"), None) is None
+
+
+def test_the_planar_alignment_puts_the_estimate_on_the_truth_and_ignores_tilt():
+    truth = planar(4.0, -2.0, 1.1, 0.3)
+    tilt = make_transform(quaternion_to_matrix([np.sin(0.05), 0.0, 0.0, np.cos(0.05)]), [0, 0, 0])
+    estimate = planar(1.0, 1.0, 0.9, -0.4) @ tilt
+    t = planar_alignment(truth, estimate)
+    assert np.allclose(t[:2, :2] @ [1.0, 1.0] + t[:2, 3], [4.0, -2.0])
+    assert np.arctan2(t[1, 0], t[0, 0]) == pytest.approx(0.7)
+    assert np.allclose(t[2], [0, 0, 1, 0])

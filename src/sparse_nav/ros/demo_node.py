@@ -6,6 +6,7 @@ wrapper's frame, as users save them), summary.png (top view: SLAM points, true w
 exit found and the room lines next to it, the last path), map.png, run.mp4 (top view over time)
 and run.bag, then exits so that a launch file with required="true" ends.
 """
+import collections
 import json
 import os
 import threading
@@ -21,10 +22,10 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
-from sparse_nav.mission_report import evaluate
+from sparse_nav.mission_report import evaluate, planar_alignment
 from sparse_nav.msg import ConductorState, ExitCandidates, FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
-from sparse_nav.ros.conversions import cloud_to_points, transform_to_matrix
+from sparse_nav.ros.conversions import cloud_to_points, pose_to_matrix, transform_to_matrix
 from sparse_nav.ros.sim_node import load_ros_world
 from sparse_nav.summary import plot_grid, plot_summary
 from sparse_nav.video import TopViewVideo
@@ -70,7 +71,12 @@ class DemoNode:
         self.frame_period_s = float(rospy.get_param("~video_frame_period_s", 1.0))
         self.world = load_ros_world(self.world_name)
         self.conductor_states = []
-        self.t_truth_map = None
+        self.t_truth_map = None  # map -> sim_world now: the latest alignment while tracking
+        self.truth_history = collections.deque(maxlen=200)  # ground_truth/odom, for alignment
+        # Places in the map frame put in sim_world with the alignment of the moment they were
+        # published: after a SLAM map switch the map frame's relation to the truth changes.
+        self.exit_truth = {}
+        self.outline_truth = None
         os.makedirs(self.output_dir, exist_ok=True)
         self.lock = threading.Lock()
         self.bag = rosbag.Bag(os.path.join(self.output_dir, "run.bag"), "w")
@@ -99,6 +105,14 @@ class DemoNode:
             elif topic == "ground_truth/odom":
                 p = msg.pose.pose.position
                 self.true_path.append((p.x, p.y))
+                self.truth_history.append(msg)
+            if topic == "conductor/state" and msg.has_exit and self._truth_from_map() is not None:
+                key = (msg.exit.x, msg.exit.y)
+                if key not in self.exit_truth:
+                    self.exit_truth[key] = tuple(self._to_truth(key)[0])
+            elif (topic == "exit_candidates" and len(msg.room_outline) >= 3
+                  and self._truth_from_map() is not None):
+                self.outline_truth = self._to_truth([(p.x, p.y) for p in msg.room_outline])
 
     def _wait_for_clock(self):
         while not rospy.is_shutdown() and rospy.Time.now().is_zero():
@@ -113,8 +127,35 @@ class DemoNode:
         t = tf.transform.translation
         self.estimated_path.append((t.x, t.y))
 
+    def _sample_alignment(self):
+        """Updates map -> sim_world from the estimated and the true base pose of one instant.
+
+        The simulator's alignment holds for the first SLAM map only: after a switch the bridge
+        anchors the new map from a guessed pose, and the later map drew rotated against the walls.
+        Sampled only while tracking: a lost robot's estimate is the last one, not where it is.
+        """
+        with self.lock:
+            tracking = bool(self.states) and self.states[-1].state == SlamState.OK
+            truths = list(self.truth_history)
+        if not tracking or not truths:
+            return
+        try:
+            tf = self.tf_buffer.lookup_transform("map", "base_link", rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                tf2_ros.ExtrapolationException):
+            return
+        stamp = tf.header.stamp.to_sec()
+        truth = min(truths, key=lambda m: abs(m.header.stamp.to_sec() - stamp))
+        if abs(truth.header.stamp.to_sec() - stamp) > 0.1:
+            return
+        try:
+            t_truth_base = pose_to_matrix(truth.pose.pose)
+        except ValueError:
+            return
+        self.t_truth_map = planar_alignment(t_truth_base, transform_to_matrix(tf.transform))
+
     def _truth_from_map(self):
-        """4x4 map -> sim_world (the display alignment the simulator publishes), or None."""
+        """4x4 map -> sim_world, or None: the latest sampled alignment, else the simulator's."""
         if self.t_truth_map is None:
             try:
                 tf = self.tf_buffer.lookup_transform("sim_world", "map", rospy.Time(0))
@@ -133,9 +174,10 @@ class DemoNode:
         """The exit the conductor heads for, in the truth frame, or None."""
         with self.lock:
             last = self.conductor_states[-1] if self.conductor_states else None
-        if last is None or not last.has_exit or self._truth_from_map() is None:
+        if last is None or not last.has_exit:
             return None
-        return tuple(self._to_truth((last.exit.x, last.exit.y))[0])
+        with self.lock:
+            return self.exit_truth.get((last.exit.x, last.exit.y))
 
     def _frame(self, video):
         with self.lock:
@@ -173,6 +215,7 @@ class DemoNode:
         try:
             while not rospy.is_shutdown() and rospy.Time.now().to_sec() < self.sim_time_limit_s:
                 self._sample_estimate()
+                self._sample_alignment()
                 now = rospy.Time.now().to_sec()
                 if now >= next_frame:
                     self._frame(video)
@@ -193,11 +236,10 @@ class DemoNode:
     def _exit_lines(self):
         """The room outline's two edges that meet nearest to the exit found (truth frame)."""
         with self.lock:
-            candidates = self.latest.get("exit_candidates")
+            outline = self.outline_truth
         found = self._found_exit()
-        if candidates is None or found is None or len(candidates.room_outline) < 3:
+        if outline is None or found is None:
             return []
-        outline = self._to_truth([(p.x, p.y) for p in candidates.room_outline])
         edges = [(outline[i], outline[(i + 1) % len(outline)]) for i in range(len(outline))]
 
         def distance(edge):

@@ -392,6 +392,23 @@ def test_tracking_lost_looking_around_outside_the_outline_is_done_else_the_last_
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
 
 
+def test_tracking_lost_past_the_exit_and_never_back_is_done_inside_the_outline_gave_up():
+    m = looking_around()  # at (6.5, 0), 0.5 m outside ROOM: within left_room_margin_m
+    m.tick(walls_around=WALLS_ROOM)
+    m.tick(tracking_lost=True, walls_around=())
+    assert m.conductor.state == State.LOST
+    m.tick(dt=m.conductor.config.lost_timeout_s + 1.0, tracking_lost=True)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "left the room: tracking lost 0.50 m outside its outline and not back in "
+                    "60 s of relocalising")
+    m = looking_around()
+    m.tick(robot_xy=(4.5, 0.0), walls_around=WALLS_ROOM)  # back inside the outline
+    m.tick(tracking_lost=True, walls_around=())
+    m.tick(dt=m.conductor.config.lost_timeout_s + 1.0, tracking_lost=True)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.GAVE_UP, "SLAM tracking lost for more than 60 s")
+
+
 def test_the_number_of_rooms_is_bounded():
     m = looking_around()
     m.tick(scan_running=False, walls_around=WALLS_ROOM)

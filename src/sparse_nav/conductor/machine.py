@@ -116,7 +116,7 @@ class ConductorConfig:
     stall_timeout_s: float = 30.0        # no progress toward a goal for this long: a goal failure
     stall_progress_m: float = 0.2        # ... progress: this much closer than ever before
     exit_near_m: float = 1.0             # stalled this close to the exit: pass through from there
-    lost_timeout_s: float = 60.0         # tracking lost longer than this: gave up
+    lost_timeout_s: float = 60.0         # tracking lost longer than this: gave up (or out, past an exit)
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
     recover_clear_s: float = 10.0        # back inside within this of getting out: the same
                                          # episode, its time counts on (a robot on a cell's edge)
@@ -324,6 +324,17 @@ class Conductor:
                   f"left the room: tracking lost {outside:.2f} m outside its outline")
         return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
 
+    def _lost_beyond_the_exit(self, obs):
+        """How far outside the room outline tracking was lost past the exit, or None. Within
+        left_room_margin_m the robot may still be in the door; but a robot there turning to
+        relocalise sees the mapped room again, so tracking still lost after lost_timeout_s says
+        the room is out of view: it is out."""
+        if self.phase not in (Phase.PASS_THROUGH, Phase.LOOK_AROUND) \
+                or self._last_tracked_xy is None or len(obs.room_outline) < 3:
+            return None
+        outside = distance_outside(self._last_tracked_xy, obs.room_outline)
+        return outside if outside > 0 else None
+
     def _safety(self, t, obs):
         """LOST and RECOVER take over from any state; None when neither applies."""
         cfg = self.config
@@ -340,6 +351,12 @@ class Conductor:
                 self._set(t, State.LOST, self.phase, "SLAM tracking lost: stopped, relocalising")
                 return [Action(ActionKind.STOP), self._scan("relocalise")]
             if t - self._lost_since_s > cfg.lost_timeout_s:
+                outside = self._lost_beyond_the_exit(obs)
+                if outside is not None:
+                    self._set(t, State.IDLE, Phase.DONE, f"left the room: tracking lost "
+                              f"{outside:.2f} m outside its outline and not back in "
+                              f"{cfg.lost_timeout_s:g} s of relocalising")
+                    return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
                 return self._give_up(t, f"SLAM tracking lost for more than {cfg.lost_timeout_s:g} s")
             if not obs.scan_running:
                 return [self._scan("relocalise")]

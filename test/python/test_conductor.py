@@ -87,6 +87,16 @@ def test_no_map_after_the_scan_rounds_gives_up_with_the_reason():
     assert "no navigable map after 2 scans" in m.conductor.reason
 
 
+def test_failed_scans_with_a_map_at_hand_look_for_the_exit_in_it_after_the_last_round():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, max_scan_rounds=2))
+    m.tick(start_requested=True)
+    actions = m.run_scan(map_ready=True, failed=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
+    assert m.conductor.reason == "scan failed: scan again (2/2)"
+    assert kinds(m.run_scan(map_ready=True, failed=True)) == [ActionKind.FIND_EXIT]
+    assert m.conductor.reason == "the last of 2 scans failed: find the exit in the map there is"
+
+
 def test_a_new_slam_map_during_the_initial_scan_scans_again_a_merge_back_does_not():
     m = Mission(ConductorConfig(wall_scan_enabled=False, max_scan_rounds=2))
     m.tick(start_requested=True, slam_map_index=0)

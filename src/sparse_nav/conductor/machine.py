@@ -493,6 +493,12 @@ class Conductor:
                     self._set(t, State.START, Phase.WALL_SCAN, "initial scan done: wall scan")
                     return [self._scan("wall")]
                 return self._ask_exit(t, "initial scan done: find the exit")
+            if obs.map_ready and not rounds_left:
+                # Scans that keep failing (tracking lost over and over) still leave a map: the
+                # exit is looked for in it rather than given up with a map at hand.
+                return self._ask_exit(t, f"the last of {self._scan_rounds} scans "
+                                         f"{'failed' if obs.scan_failed else 'ended'}: find the "
+                                         f"exit in the map there is")
             if self._scan_rounds >= cfg.max_scan_rounds:
                 return self._give_up(t, f"no navigable map after {self._scan_rounds} scans")
             self._scan_rounds += 1

@@ -43,3 +43,31 @@ def planar_alignment(t_truth_base, t_map_base):
     def flat(t):
         return planar(t[0, 3], t[1, 3], 0.0, yaw_of(t))
     return flat(t_truth_base) @ invert(flat(t_map_base))
+
+
+class MapAlignments:
+    """map -> truth alignment per SLAM map index, for drawing and judging a run's maps.
+
+    The bridge anchors each new SLAM map in `map` from a guessed pose, and re-anchors on a merge,
+    so each map index has its own alignment. Samples within settle_s of the last change of map
+    index or tracking are skipped: the estimated pose lags the switch.
+    """
+
+    def __init__(self, settle_s=1.0):
+        self.settle_s = float(settle_s)
+        self._by_map = {}
+        self._latest = None
+        self._since = None  # (time of the last change, (tracking, map index))
+
+    def add(self, time_s, tracking, map_index, t_truth_base, t_map_base):
+        """One instant's poses; tracking False (lost) only marks a change."""
+        key = (bool(tracking), map_index)
+        if self._since is None or self._since[1] != key:
+            self._since = (time_s, key)
+        if not tracking or time_s - self._since[0] < self.settle_s:
+            return
+        self._latest = self._by_map[map_index] = planar_alignment(t_truth_base, t_map_base)
+
+    def get(self, map_index):
+        """The alignment of map_index, else the newest of any map, else None."""
+        return self._by_map.get(map_index, self._latest)

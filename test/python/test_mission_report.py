@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from sparse_nav.mission_report import (evaluate, exit_error_m, left_the_room, path_length_m,
-                                       planar_alignment)
+from sparse_nav.mission_report import (MapAlignments, evaluate, exit_error_m, left_the_room,
+                                       path_length_m, planar_alignment)
 from sparse_nav.sim.world import load_world
 from sparse_nav.transforms import make_transform, planar, quaternion_to_matrix
 
@@ -37,3 +37,20 @@ def test_the_planar_alignment_puts_the_estimate_on_the_truth_and_ignores_tilt():
     assert np.allclose(t[:2, :2] @ [1.0, 1.0] + t[:2, 3], [4.0, -2.0])
     assert np.arctan2(t[1, 0], t[0, 0]) == pytest.approx(0.7)
     assert np.allclose(t[2], [0, 0, 1, 0])
+
+
+def test_each_slam_map_keeps_its_own_alignment_and_a_switch_settles_first():
+    alignments = MapAlignments(settle_s=1.0)
+    truth = planar(2.0, 1.0, 0.0, 0.5)
+    assert alignments.get(0) is None
+    alignments.add(0.0, True, 0, truth, planar(0.0, 0.0, 0.0, 0.0))
+    assert alignments.get(0) is None  # the first second of a map is not sampled
+    alignments.add(1.5, True, 0, truth, planar(0.0, 0.0, 0.0, 0.0))
+    first = alignments.get(0)
+    assert np.allclose(first, truth)
+    alignments.add(2.0, False, 0, None, None)
+    alignments.add(3.0, True, 1, truth, planar(1.0, 0.0, 0.0, 0.5))  # a new map, anchored anew
+    assert alignments.get(1) is first  # not yet settled: the newest of any map
+    alignments.add(4.5, True, 1, truth, planar(1.0, 0.0, 0.0, 0.5))
+    assert np.allclose(alignments.get(1), planar(1.0, 1.0, 0.0, 0.0))  # same heading, 1 m off
+    assert alignments.get(0) is first  # merged back into map 0: its own alignment again

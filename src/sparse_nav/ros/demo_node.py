@@ -22,7 +22,7 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
-from sparse_nav.mission_report import evaluate, planar_alignment
+from sparse_nav.mission_report import MapAlignments, evaluate
 from sparse_nav.msg import ConductorState, ExitCandidates, FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, pose_to_matrix, transform_to_matrix
@@ -71,14 +71,15 @@ class DemoNode:
         self.frame_period_s = float(rospy.get_param("~video_frame_period_s", 1.0))
         self.world = load_ros_world(self.world_name)
         self.conductor_states = []
-        self.t_truth_map = None  # map -> sim_world now: the latest alignment while tracking
+        self.t_truth_map = None  # the simulator's map -> sim_world, for the first SLAM map
+        self.alignments = MapAlignments()
         self.truth_history = collections.deque(maxlen=200)  # ground_truth/odom, for alignment
         # Places in the map frame put in sim_world with the alignment of the moment they were
         # published: after a SLAM map switch the map frame's relation to the truth changes.
         self.exit_truth = {}
         self.outline_truth = None
         os.makedirs(self.output_dir, exist_ok=True)
-        self.lock = threading.Lock()
+        self.lock = threading.RLock()  # _record converts places with _truth_from_map, which locks
         self.bag = rosbag.Bag(os.path.join(self.output_dir, "run.bag"), "w")
         self.latest = {}
         self.responses = []
@@ -128,16 +129,22 @@ class DemoNode:
         self.estimated_path.append((t.x, t.y))
 
     def _sample_alignment(self):
-        """Updates map -> sim_world from the estimated and the true base pose of one instant.
+        """Samples map -> sim_world of the present SLAM map from the estimated and the true base
+        pose of one instant.
 
-        The simulator's alignment holds for the first SLAM map only: after a switch the bridge
-        anchors the new map from a guessed pose, and the later map drew rotated against the walls.
-        Sampled only while tracking: a lost robot's estimate is the last one, not where it is.
+        The simulator's alignment holds for the first SLAM map only: the bridge anchors each new
+        map from a guessed pose (and re-anchors on a merge), and later maps drew rotated against
+        the walls. A lost robot's estimate is the last one, not where it is: no sample then.
         """
         with self.lock:
-            tracking = bool(self.states) and self.states[-1].state == SlamState.OK
+            state = self.states[-1] if self.states else None
             truths = list(self.truth_history)
-        if not tracking or not truths:
+        if state is None or not truths:
+            return
+        tracking = state.state in (SlamState.OK, SlamState.NEW_MAP)
+        now = rospy.Time.now().to_sec()
+        if not tracking:
+            self.alignments.add(now, False, state.map_index, None, None)
             return
         try:
             tf = self.tf_buffer.lookup_transform("map", "base_link", rospy.Time(0))
@@ -152,10 +159,17 @@ class DemoNode:
             t_truth_base = pose_to_matrix(truth.pose.pose)
         except ValueError:
             return
-        self.t_truth_map = planar_alignment(t_truth_base, transform_to_matrix(tf.transform))
+        self.alignments.add(stamp, True, state.map_index, t_truth_base,
+                            transform_to_matrix(tf.transform))
 
     def _truth_from_map(self):
-        """4x4 map -> sim_world, or None: the latest sampled alignment, else the simulator's."""
+        """4x4 map -> sim_world of the present SLAM map, or None: its sampled alignment, else the
+        newest of any map, else the simulator's."""
+        with self.lock:
+            map_index = self.states[-1].map_index if self.states else None
+        sampled = self.alignments.get(map_index)
+        if sampled is not None:
+            return sampled
         if self.t_truth_map is None:
             try:
                 tf = self.tf_buffer.lookup_transform("sim_world", "map", rospy.Time(0))
@@ -228,7 +242,12 @@ class DemoNode:
                 rospy.sleep(0.1)
             else:
                 rospy.logwarn("demo: sim-time limit of %.0f s reached", self.sim_time_limit_s)
-            rospy.sleep(3.0)  # the drone lands; the last state and path arrive
+            # The drone lands; the last state and path arrive, and the present map's alignment
+            # goes on being sampled (a map started in the last seconds is the one drawn).
+            until = rospy.Time.now().to_sec() + 3.0
+            while not rospy.is_shutdown() and rospy.Time.now().to_sec() < until:
+                self._sample_alignment()
+                rospy.sleep(0.1)
             self._frame(video)
         finally:
             video.close()

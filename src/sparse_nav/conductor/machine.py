@@ -315,25 +315,22 @@ class Conductor:
         walls to track). Without a loss the pass-through goal and the look around decide,
         because the outline covers only what the scan saw (an L-shaped room's far arm lies
         outside it)."""
-        if self.phase not in (Phase.PASS_THROUGH, Phase.LOOK_AROUND) or not obs.tracking_lost:
+        outside = self._lost_outside_by(obs) if obs.tracking_lost else None
+        if outside is None or outside < self.config.left_room_margin_m:
             return None
-        outside = distance_outside(self._last_tracked_xy, obs.room_outline)
-        if outside < self.config.left_room_margin_m:
-            return None
-        self._set(t, State.IDLE, Phase.DONE,
-                  f"left the room: tracking lost {outside:.2f} m outside its outline")
-        return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
+        return self._out(t, outside, "")
 
-    def _lost_beyond_the_exit(self, obs):
-        """How far outside the room outline tracking was lost past the exit, or None. Within
-        left_room_margin_m the robot may still be in the door; but a robot there turning to
-        relocalise sees the mapped room again, so tracking still lost after lost_timeout_s says
-        the room is out of view: it is out."""
-        if self.phase not in (Phase.PASS_THROUGH, Phase.LOOK_AROUND) \
-                or self._last_tracked_xy is None or len(obs.room_outline) < 3:
+    def _lost_outside_by(self, obs):
+        """While passing through or looking around beyond the exit, how far outside the room
+        outline the last tracked position lies (0 inside it or without an outline); else None."""
+        if self.phase not in (Phase.PASS_THROUGH, Phase.LOOK_AROUND):
             return None
-        outside = distance_outside(self._last_tracked_xy, obs.room_outline)
-        return outside if outside > 0 else None
+        return distance_outside(self._last_tracked_xy, obs.room_outline)
+
+    def _out(self, t, outside, why):
+        self._set(t, State.IDLE, Phase.DONE,
+                  f"left the room: tracking lost {outside:.2f} m outside its outline{why}")
+        return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
 
     def _safety(self, t, obs):
         """LOST and RECOVER take over from any state; None when neither applies."""
@@ -351,12 +348,12 @@ class Conductor:
                 self._set(t, State.LOST, self.phase, "SLAM tracking lost: stopped, relocalising")
                 return [Action(ActionKind.STOP), self._scan("relocalise")]
             if t - self._lost_since_s > cfg.lost_timeout_s:
-                outside = self._lost_beyond_the_exit(obs)
-                if outside is not None:
-                    self._set(t, State.IDLE, Phase.DONE, f"left the room: tracking lost "
-                              f"{outside:.2f} m outside its outline and not back in "
-                              f"{cfg.lost_timeout_s:g} s of relocalising")
-                    return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
+                # Within left_room_margin_m the robot may still be in the door; but one there,
+                # turning to relocalise, would see the mapped room again: still lost, it is out.
+                outside = self._lost_outside_by(obs)
+                if outside is not None and outside > 0:
+                    return self._out(t, outside, f" and not back in {cfg.lost_timeout_s:g} s "
+                                                 f"of relocalising")
                 return self._give_up(t, f"SLAM tracking lost for more than {cfg.lost_timeout_s:g} s")
             if not obs.scan_running:
                 return [self._scan("relocalise")]

@@ -70,3 +70,9 @@ def scaled(t, metres_per_unit):
     out = np.array(t, dtype=float)
     out[:3, 3] *= metres_per_unit
     return out
+
+
+def apply_planar(t, xy):
+    """(N, 2) points xy carried by the x-y part of the 4x4 transform t."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    return xy @ t[:2, :2].T + t[:2, 3]

@@ -3,8 +3,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sparse_nav.transforms import (invert, make_transform, matrix_to_quaternion, planar,
-                                   quaternion_to_matrix)
+from sparse_nav.transforms import (apply_planar, invert, make_transform, matrix_to_quaternion,
+                                   planar, quaternion_to_matrix)
 
 quaternions = st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(
     lambda q: np.linalg.norm(q) > 0.1)
@@ -30,3 +30,9 @@ def test_planar():
     m = planar(1, 2, 3, np.pi / 2)
     np.testing.assert_allclose(m[:3, :3] @ [1, 0, 0], [0, 1, 0], atol=1e-12)
     np.testing.assert_allclose(m[:3, 3], [1, 2, 3])
+
+
+def test_apply_planar_carries_points_by_the_x_y_part():
+    t = planar(1.0, 2.0, 5.0, np.pi / 2)
+    assert np.allclose(apply_planar(t, [(1.0, 0.0), (0.0, 1.0)]), [(1.0, 3.0), (0.0, 2.0)])
+    assert apply_planar(t, []).shape == (0, 2)

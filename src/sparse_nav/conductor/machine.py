@@ -116,7 +116,7 @@ class ConductorConfig:
     stall_timeout_s: float = 30.0        # no progress toward a goal for this long: a goal failure
     stall_progress_m: float = 0.2        # ... progress: this much closer than ever before
     exit_near_m: float = 1.0             # stalled this close to the exit: pass through from there
-    lost_timeout_s: float = 60.0         # tracking lost longer than this: gave up (or out, past an exit)
+    lost_timeout_s: float = 60.0         # tracking lost this long: gave up (out, past an exit)
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
     recover_clear_s: float = 10.0        # back inside within this of getting out: the same
                                          # episode, its time counts on (a robot on a cell's edge)

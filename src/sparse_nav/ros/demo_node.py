@@ -28,6 +28,7 @@ from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, pose_to_matrix, transform_to_matrix
 from sparse_nav.ros.sim_node import load_ros_world
 from sparse_nav.summary import plot_grid, plot_summary
+from sparse_nav.transforms import apply_planar
 from sparse_nav.video import TopViewVideo
 
 RECORDED = [
@@ -107,13 +108,15 @@ class DemoNode:
                 p = msg.pose.pose.position
                 self.true_path.append((p.x, p.y))
                 self.truth_history.append(msg)
-            if topic == "conductor/state" and msg.has_exit and self._truth_from_map() is not None:
+            if topic == "conductor/state" and msg.has_exit:
                 key = (msg.exit.x, msg.exit.y)
-                if key not in self.exit_truth:
-                    self.exit_truth[key] = tuple(self._to_truth(key)[0])
-            elif (topic == "exit_candidates" and len(msg.room_outline) >= 3
-                  and self._truth_from_map() is not None):
-                self.outline_truth = self._to_truth([(p.x, p.y) for p in msg.room_outline])
+                truth = None if key in self.exit_truth else self._to_truth(key)
+                if truth is not None:
+                    self.exit_truth[key] = tuple(truth[0])
+            elif topic == "exit_candidates" and len(msg.room_outline) >= 3:
+                outline = self._to_truth([(p.x, p.y) for p in msg.room_outline])
+                if outline is not None:
+                    self.outline_truth = outline
 
     def _wait_for_clock(self):
         while not rospy.is_shutdown() and rospy.Time.now().is_zero():
@@ -180,17 +183,16 @@ class DemoNode:
         return self.t_truth_map
 
     def _to_truth(self, xy):
+        """(N, 2) map-frame points in sim_world with the present alignment, or None."""
         t = self._truth_from_map()
-        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
-        return xy @ t[:2, :2].T + t[:2, 3]
+        return None if t is None else apply_planar(t, xy)
 
     def _found_exit(self):
         """The exit the conductor heads for, in the truth frame, or None."""
         with self.lock:
             last = self.conductor_states[-1] if self.conductor_states else None
-        if last is None or not last.has_exit:
-            return None
-        with self.lock:
+            if last is None or not last.has_exit:
+                return None
             return self.exit_truth.get((last.exit.x, last.exit.y))
 
     def _frame(self, video):
@@ -202,7 +204,8 @@ class DemoNode:
             estimated = list(self.estimated_path)
         cells_xy = None
         planned = []
-        if self._truth_from_map() is not None:
+        t_truth_map = self._truth_from_map()
+        if t_truth_map is not None:
             if grid is not None:
                 cells = grid_to_array(grid)
                 res = grid.info.resolution
@@ -210,12 +213,12 @@ class DemoNode:
                 centres = []
                 for value in (0, 100):
                     rows, cols = np.nonzero(cells == value)
-                    centres.append(self._to_truth(np.stack(
+                    centres.append(apply_planar(t_truth_map, np.stack(
                         [o.x + (cols + 0.5) * res, o.y + (rows + 0.5) * res], axis=1)))
                 cells_xy = tuple(centres)
             if path is not None and path.poses:
-                planned = self._to_truth([(p.pose.position.x, p.pose.position.y)
-                                          for p in path.poses])
+                planned = apply_planar(t_truth_map, [(p.pose.position.x, p.pose.position.y)
+                                                     for p in path.poses])
         text = f"t = {rospy.Time.now().to_sec():6.1f} s"
         if state is not None:
             text += f"  {state.state} / {state.phase}"
@@ -292,7 +295,8 @@ class DemoNode:
                       t_truth_map, title=f"{world.name}: occupancy grid (sim_world frame)")
         found_exit = self._found_exit()
         path_msg = latest.get("navigator/path")
-        planned = (self._to_truth([(p.pose.position.x, p.pose.position.y) for p in path_msg.poses])
+        planned = (apply_planar(t_truth_map, [(p.pose.position.x, p.pose.position.y)
+                                              for p in path_msg.poses])
                    if path_msg is not None and path_msg.poses and t_truth_map is not None else [])
         plot_summary(os.path.join(self.output_dir, "summary.png"), world, map_points,
                      self.true_path, self.estimated_path,

@@ -218,11 +218,10 @@ class ScaleEstimator:
         del self._ratios[:-self._max]
         return True
 
-    def reset(self):
-        """A new SLAM map has its own scale: forget the samples, keep the last value as prior."""
-        value, _, _ = self.estimate()
-        self._prior = value
-        self._ratios = []
+    def fresh(self):
+        """An estimator for a new SLAM map, which has its own scale: no samples, this one's value
+        as its prior."""
+        return ScaleEstimator(self.estimate()[0], self._min_metric_m, self._max)
 
     def estimate(self):
         """(metres_per_unit, confidence in [0, 1], n_samples)."""
@@ -237,6 +236,24 @@ class ScaleEstimator:
         spread = float(np.median(np.abs(r - med))) / med if med > 0 else 1.0
         confidence = (n / (n + 3.0)) * max(0.0, 1.0 - 5.0 * spread)
         return med, float(confidence), n
+
+
+class MapScales:
+    """One ScaleEstimator per SLAM map, following MapAnchors' events. A map SLAM merges back
+    into keeps its own samples; one estimator shared by all maps restarted there from a single
+    sample (16 % off after merges in the stressed drone runs)."""
+
+    def __init__(self, prior_metres_per_unit=1.0):
+        self.current = ScaleEstimator(prior_metres_per_unit)
+        self._by_map = {}
+
+    def on_map_event(self, index, event):
+        """The anchor event of MapAnchors.update for the map ``index`` (None: no change)."""
+        if event == "new_map":
+            self.current = self.current.fresh()
+        elif event == "switched":
+            self.current = self._by_map.get(index) or self.current.fresh()
+        self._by_map[index] = self.current
 
 
 _MOVE = re.compile(r"^\s*(forward|back|left|right|up|down)\s+(\d+)\s*$")

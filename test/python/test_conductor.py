@@ -98,22 +98,49 @@ def test_failed_scans_with_a_map_at_hand_look_for_the_exit_in_it_after_the_last_
 
 
 def test_a_new_slam_map_during_the_initial_scan_scans_again_a_merge_back_does_not():
-    m = Mission(ConductorConfig(wall_scan_enabled=False, max_scan_rounds=2))
+    m = Mission(ConductorConfig(wall_scan_enabled=False, max_scan_rounds=2, map_settle_s=5.0))
     m.tick(start_requested=True, slam_map_index=0)
     m.tick(scan_running=True)
     m.tick(slam_map_index=1)  # lost, then a new map: it holds only the rest of the scan
-    actions = m.tick(scan_running=False, map_ready=True)
+    # Judged only once the new map has had map_settle_s to merge back.
+    assert m.tick(scan_running=False, map_ready=True) == []
+    assert m.conductor.reason == "mission started: initial scan"
+    actions = m.tick(dt=4.0)
     assert m.conductor.phase == Phase.INITIAL_SCAN and "SLAM map changed" in m.conductor.reason
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
     m.tick(scan_running=True)
     m.tick(slam_map_index=2)  # again, but no rounds are left: the map at hand is used
+    m.tick(dt=6.0)
     assert kinds(m.tick(scan_running=False, map_ready=True)) == [ActionKind.FIND_EXIT]
 
-    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m = Mission(ConductorConfig(wall_scan_enabled=False, map_settle_s=5.0))
     m.tick(start_requested=True, slam_map_index=0)
     m.tick(scan_running=True)
     m.tick(slam_map_index=1)
-    m.tick(slam_map_index=0)  # merged back into the map the scan began in
+    m.tick(slam_map_index=0)  # relocalised in the map the scan began in
+    assert m.tick(scan_running=False, map_ready=True) == []
+    assert kinds(m.tick(dt=5.0)) == [ActionKind.FIND_EXIT]
+
+
+def test_a_scan_ending_in_a_new_slam_map_that_merges_into_the_scans_goes_on():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, map_settle_s=5.0))
+    m.tick(start_requested=True, slam_map_index=3)
+    m.tick(scan_running=True)
+    m.tick(tracking_lost=True)
+    m.tick(tracking_lost=False, slam_map_index=6)  # a new map just as the scan ends
+    assert m.tick(scan_running=False, map_ready=True) == []
+    # Two seconds on, SLAM merges map 6 into map 3: the same map as the scan's.
+    m.tick(dt=2.0, slam_map_index=3, slam_merges=((6, 3),))
+    assert m.tick() == []
+    assert kinds(m.tick(dt=5.0)) == [ActionKind.FIND_EXIT]
+    assert m.conductor.reason == "initial scan done: find the exit"
+
+    # A scan begun in a new map that SLAM merged into an earlier one ended in that one.
+    m = Mission(ConductorConfig(wall_scan_enabled=False, map_settle_s=5.0))
+    m.tick(start_requested=True, slam_map_index=4)
+    m.tick(scan_running=True)
+    m.tick(slam_map_index=3, slam_merges=((4, 3),))
+    m.tick(dt=10.0)
     assert kinds(m.tick(scan_running=False, map_ready=True)) == [ActionKind.FIND_EXIT]
 
 
@@ -875,6 +902,21 @@ def test_tracking_back_in_a_new_slam_map_relocalises_until_it_merges_back():
     m.tick(scan_running=True)
     # SLAM merges map 1 back into map 0: the goal is resumed in its own map.
     actions = m.tick(slam_map_index=0, robot_xy=(2.1, 0.0))
+    assert (ActionKind.GOAL, (5.0, 0.0)) in [(a.kind, a.payload) for a in actions]
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
+
+
+def test_an_exit_found_in_a_map_that_merged_on_is_resumed_in_the_map_it_merged_into():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, merge_wait_s=20.0))
+    m.obs.slam_map_index = 6
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0))
+    # While tracking, SLAM merges map 6 into map 3; later tracking is lost and back in map 3.
+    m.tick(slam_map_index=3, slam_merges=((6, 3),), robot_xy=(1.0, 0.0))
+    m.tick(tracking_lost=True)
+    m.tick(scan_running=True)
+    actions = m.tick(tracking_lost=False, robot_xy=(1.1, 0.0))
     assert (ActionKind.GOAL, (5.0, 0.0)) in [(a.kind, a.payload) for a in actions]
     assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sparse_nav.slam_bridge import (LOST, NOT_INITIALIZED, OK, ORB_LOST, ORB_NOT_INITIALIZED,
-                                    ORB_OK, BridgeConfig, DroneMoveScale, MapAnchors,
+                                    ORB_OK, BridgeConfig, DroneMoveScale, MapAnchors, MapScales,
                                     ScaleEstimator, StateTracker, odometry_camera_position)
 from sparse_nav.transforms import invert, make_transform, planar, yaw_of
 
@@ -124,8 +124,25 @@ def test_scale_estimator_is_robust_and_confident_with_samples():
     value, confidence, n = est.estimate()
     assert value == pytest.approx(0.4, rel=0.02)
     assert 0.5 < confidence <= 1.0 and n == 21
-    est.reset()
-    assert est.estimate() == (pytest.approx(0.4, rel=0.02), 0.0, 0)
+    assert est.fresh().estimate() == (pytest.approx(0.4, rel=0.02), 0.0, 0)
+
+
+def test_each_slam_map_keeps_its_scale_samples_across_merges():
+    scales = MapScales(prior_metres_per_unit=1.0)
+    scales.on_map_event(0, "first")
+    for _ in range(5):
+        scales.current.add(1.0, 3.0)
+    scales.on_map_event(0, None)
+    assert scales.current.estimate()[2] == 5
+    # A new map starts without samples, from the last map's value.
+    scales.on_map_event(1, "new_map")
+    assert scales.current.estimate() == (3.0, 0.0, 0)
+    scales.current.add(1.0, 0.5)
+    # SLAM merges back into map 0: its five samples and its scale are back.
+    scales.on_map_event(0, "switched")
+    assert scales.current.estimate()[:1] == (3.0,) and scales.current.estimate()[2] == 5
+    scales.on_map_event(1, "switched")
+    assert scales.current.estimate() == (0.5, pytest.approx(0.25), 1)
 
 
 def test_a_second_sample_read_short_does_not_blow_the_scale_up():

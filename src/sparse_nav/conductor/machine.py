@@ -69,6 +69,9 @@ class Observation:
     time_s: float
     tracking_lost: bool = False          # SLAM lost its map (not: not initialised yet)
     slam_map_index: Optional[int] = None  # the SLAM map the robot tracks in (slam/state)
+    # (from, into) SLAM map indices: the map changed while tracking, so SLAM merged `from` into
+    # `into` (or re-anchored it there): what was found in `from` lives on in `into`.
+    slam_merges: Tuple = ()
     map_ready: bool = False              # a grid with free cells around the robot exists
     robot_xy: Optional[Tuple[float, float]] = None
     robot_in_obstacle: bool = False
@@ -124,6 +127,10 @@ class ConductorConfig:
                                          # relocalise this long for a merge back, then go on in
                                          # the new map (look around beyond the exit, else scan)
     max_rescans: int = 2                 # ... initial scans in a new map before giving up
+    map_settle_s: float = 5.0            # a scan that ends within this of a SLAM map change
+                                         # is judged this long after it: a new map often merges
+                                         # back within seconds, and a grid seconds old holds
+                                         # no room to look for the exit in
     max_rooms: int = 3                   # rooms escaped in turn; 1: done after the first exit
                                          # without looking around
     room_max_opening_deg: float = 45.0   # beyond an exit, openings no wider than this all round
@@ -139,7 +146,7 @@ class ConductorConfig:
                      "lost_timeout_s", "recover_timeout_s", "recover_clear_s",
                      "left_room_margin_m", "inside_room_margin_m", "rejected_exit_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m",
-                     "walls_around_range_m", "merge_wait_s"):
+                     "walls_around_range_m", "merge_wait_s", "map_settle_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -231,6 +238,8 @@ class Conductor:
         self._scan_cut = False  # the running phase scan ended while tracking was lost
         self._scan_kind = None
         self._scan_map_index = None  # the SLAM map when the running scan began
+        self._map_index_seen = None
+        self._map_changed_s = None  # when the SLAM map index last changed
         self._last_tracked_xy: Optional[Tuple[float, float]] = None
         self._last_walls_around = ()  # the newest look around while tracking
 
@@ -265,6 +274,10 @@ class Conductor:
         if obs.return_requested and self.start_xy is not None:
             return self._navigate(t, Phase.RETURN_TO_START, self.start_xy, "return to start requested")
 
+        if obs.slam_map_index != self._map_index_seen:
+            if self._map_index_seen is not None:
+                self._map_changed_s = t
+            self._map_index_seen = obs.slam_map_index
         out = self._left_the_room(t, obs)
         if out is not None:
             return out
@@ -412,13 +425,26 @@ class Conductor:
             return [Action(ActionKind.STOP), Action(ActionKind.RECOVER_MOTION)]
         return None
 
+    @staticmethod
+    def _same_map(a, b, obs):
+        """SLAM maps a and b are one, following merges."""
+        merged = dict(obs.slam_merges)
+        ends = []
+        for index in (a, b):
+            seen = set()
+            while index in merged and index not in seen:
+                seen.add(index)
+                index = merged[index]
+            ends.append(index)
+        return ends[0] == ends[1]
+
     def _goal_in_another_map(self, obs):
         """Tracking is back on the way to or through an exit, but in another SLAM map than the
-        one the exit was found in: its coordinates mean nothing there."""
+        one the exit was found in (or merged into since): its coordinates mean nothing there."""
         return (self._resume_state == State.GOAL
                 and self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH)
                 and None not in (self._alternatives_map, obs.slam_map_index)
-                and obs.slam_map_index != self._alternatives_map)
+                and not self._same_map(self._alternatives_map, obs.slam_map_index, obs))
 
     def _wait_for_merge(self, t, obs):
         """Relocalise (stay LOST) until SLAM merges the new map back into the exit's, at most
@@ -474,6 +500,8 @@ class Conductor:
             return []
         if not self._scan_started:
             return []  # the scan was asked for and has not begun yet
+        if self._map_changed_s is not None and t - self._map_changed_s < cfg.map_settle_s:
+            return []  # judged once the new SLAM map has merged back or grown a grid
         self._scan_started = False
         cut, self._scan_cut = self._scan_cut, False
         if self.phase == Phase.LOOK_AROUND:
@@ -483,7 +511,8 @@ class Conductor:
             # room scanned since: scan the whole room again in it while rounds are left; so does
             # a scan cut short by a loss.
             rounds_left = self._scan_rounds < cfg.max_scan_rounds
-            map_changed = obs.slam_map_index != self._scan_map_index and rounds_left
+            map_changed = (not self._same_map(self._scan_map_index, obs.slam_map_index, obs)
+                           and rounds_left)
             cut = cut and rounds_left
             if obs.map_ready and not obs.scan_failed and not map_changed and not cut:
                 if cfg.wall_scan_enabled:
@@ -579,7 +608,7 @@ class Conductor:
         candidates = []
         if answered and exit_xy is not None:
             candidates = [c for c in [tuple(exit_xy)] + [tuple(xy) for xy in alternatives]
-                          if not self._was_rejected(c, obs.slam_map_index)]
+                          if not self._was_rejected(c, obs.slam_map_index, obs)]
         if answered and self._room_unconfirmed:
             if not candidates:
                 # Walls all round, yet the finder sees no room with an exit in them but the door
@@ -590,9 +619,9 @@ class Conductor:
             self._room_unconfirmed = False
         if candidates:
             # The room before's untried candidates come last (a door into a room with no exit).
-            if self._alternatives_map == obs.slam_map_index:
+            if self._same_map(self._alternatives_map, obs.slam_map_index, obs):
                 candidates += [c for c in self._alternatives if c not in candidates
-                               and not self._was_rejected(c, obs.slam_map_index)]
+                               and not self._was_rejected(c, obs.slam_map_index, obs)]
         if candidates:
             self._alternatives_map = obs.slam_map_index
             self.exit_xy = candidates[0]
@@ -644,7 +673,7 @@ class Conductor:
             inside = distance_inside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.PASS_THROUGH and inside >= cfg.inside_room_margin_m:
                 return self._wrong_exit(
-                    t, obs.slam_map_index, f"passed through ({self.exit_xy[0]:.2f}, "
+                    t, obs, f"passed through ({self.exit_xy[0]:.2f}, "
                     f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the room outline: not an exit")
             if self.phase == Phase.PASS_THROUGH:
                 return self._look_around(t, "passed through the exit: look around", self.exit_xy)
@@ -676,15 +705,17 @@ class Conductor:
             self._failure_since_s = None
         return []
 
-    def _was_rejected(self, xy, map_index):
+    def _was_rejected(self, xy, map_index, obs):
         """Near an exit rejected in the same SLAM map (another map's coordinates say nothing)."""
-        return any(m == map_index and math.dist(xy, r) < self.config.rejected_exit_radius_m
+        return any(self._same_map(m, map_index, obs)
+                   and math.dist(xy, r) < self.config.rejected_exit_radius_m
                    for m, r in self._rejected)
 
-    def _wrong_exit(self, t, map_index, why):
+    def _wrong_exit(self, t, obs, why):
         """The exit led nowhere: it and candidates near it are out of the running."""
-        self._rejected.append((map_index, self.exit_xy))
-        self._alternatives = [c for c in self._alternatives if not self._was_rejected(c, map_index)]
+        self._rejected.append((obs.slam_map_index, self.exit_xy))
+        self._alternatives = [c for c in self._alternatives
+                              if not self._was_rejected(c, obs.slam_map_index, obs)]
         return self._next_exit(t, why, f"{why}, and no candidate is left")
 
     def _next_exit(self, t, why, given_up, scan_first=False):

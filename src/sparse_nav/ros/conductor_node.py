@@ -107,9 +107,14 @@ class ConductorNode:
 
     def _on_slam_state(self, msg):
         with self.lock:
-            self.obs.tracking_lost = msg.state == SlamState.LOST  # not initialised is no loss
-            if msg.map_index != self.obs.slam_map_index:
+            lost = msg.state == SlamState.LOST  # not initialised is no loss
+            previous = self.obs.slam_map_index
+            if msg.map_index != previous:
                 self.obs.room_outline = ()  # drawn in the previous map's frame
+                if previous is not None and not lost and not self.obs.tracking_lost:
+                    # No loss in between: SLAM merged the map (or the bridge re-anchored it).
+                    self.obs.slam_merges += ((previous, msg.map_index),)
+            self.obs.tracking_lost = lost
             self.obs.slam_map_index = msg.map_index
 
     def _on_motion_status(self, msg):

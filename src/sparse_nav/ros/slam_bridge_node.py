@@ -14,7 +14,7 @@ from sparse_nav.msg import FloorEstimate, SlamScale, SlamState
 from sparse_nav.ros.conversions import (CloudError, cloud_to_points, matrix_to_transform_stamped,
                                         points_to_cloud, pose_to_matrix, transform_to_matrix)
 from sparse_nav.slam_bridge import (LOST, NEW_MAP, OK, STATE_NAMES, BridgeConfig, DroneMoveScale,
-                                    MapAnchors, ScaleEstimator, StateTracker,
+                                    MapAnchors, MapScales, StateTracker,
                                     odometry_camera_position)
 from sparse_nav.transforms import invert
 from sparse_nav.ros.params import locked, read_fields
@@ -57,7 +57,7 @@ class SlamBridgeNode:
 
         self.tracker = StateTracker(self.cfg)
         self.anchors = MapAnchors(self.cfg, self.t_base_cam)
-        self.scale = ScaleEstimator(prior_metres_per_unit=metres_per_unit)
+        self.scales = MapScales(prior_metres_per_unit=metres_per_unit)
         self.drone_moves = DroneMoveScale()
         self.t_map_base = None
         self.t_map_odom = np.eye(4)
@@ -144,25 +144,22 @@ class SlamBridgeNode:
         if state != OK:
             return
         self.n_poses += 1
-        metres_per_unit, _, _ = self.scale.estimate()
+        metres_per_unit, _, _ = self.scales.current.estimate()
         t_map_base, event = self.anchors.update(t_slam_cam, metres_per_unit)
         self.reacquiring = False
-        if event == "new_map":
-            self.scale.reset()
+        self.scales.on_map_event(self.anchors.current.index, event)
+        if event in ("new_map", "switched"):
             self.drone_moves.invalidate()
             self.last_slam_position = None
             self.new_map_pending = True
-            self.map_event = f"SLAM started a new map (index {self.anchors.current.index})"
-        elif event == "switched":
-            self.scale.reset()
-            self.drone_moves.invalidate()
-            self.last_slam_position = None
-            self.new_map_pending = True
-            self.map_event = f"SLAM merged back into map {self.anchors.current.index}"
+            self.map_event = (f"SLAM started a new map (index {self.anchors.current.index})"
+                              if event == "new_map" else
+                              f"SLAM merged back into map {self.anchors.current.index}")
+            self._publish_scale()  # the new map's own scale, or the prior it starts from
         self.t_map_base = t_map_base
         self.last_slam_position = t_slam_cam[:3, 3].copy()
         sample = self.drone_moves.on_pose(self.last_slam_position)
-        if sample is not None and self.scale.add(*sample):
+        if sample is not None and self.scales.current.add(*sample):
             self._apply_scale()
         if not self.publish_odom_tf:
             self._update_map_odom(msg.header.stamp)
@@ -218,7 +215,7 @@ class SlamBridgeNode:
         metric = float(np.linalg.norm(odom_position - self.last_odom_position))
         if metric >= 0.3:
             slam = float(np.linalg.norm(self.last_slam_position - self._odom_slam_start))
-            if self.scale.add(slam, metric):
+            if self.scales.current.add(slam, metric):
                 self._apply_scale()
             self.last_odom_position = odom_position
             self._odom_slam_start = self.last_slam_position.copy()
@@ -233,7 +230,7 @@ class SlamBridgeNode:
             self._bad_input(f"floor_plane in frame {msg.header.frame_id!r}, expected "
                             f"{self.map_frame!r}")
             return
-        if self.scale.add(msg.camera_height / anchor.metres_per_unit, self.camera_height_m):
+        if self.scales.current.add(msg.camera_height / anchor.metres_per_unit, self.camera_height_m):
             self._apply_scale()
 
     def _current_slam_position(self):
@@ -248,11 +245,11 @@ class SlamBridgeNode:
         self.drone_moves.on_response(msg.data, self._current_slam_position())
 
     def _apply_scale(self):
-        self.anchors.set_scale(self.scale.estimate()[0])
+        self.anchors.set_scale(self.scales.current.estimate()[0])
         self._publish_scale()
 
     def _publish_scale(self):
-        value, confidence, n = self.scale.estimate()
+        value, confidence, n = self.scales.current.estimate()
         msg = SlamScale()
         msg.header.stamp = rospy.Time.now()
         msg.header.frame_id = self.map_frame
@@ -319,7 +316,7 @@ class SlamBridgeNode:
         self.tf_broadcaster.sendTransform(transforms)
 
     def _on_diagnostics(self, _event):
-        value, confidence, n = self.scale.estimate()
+        value, confidence, n = self.scales.current.estimate()
         status = DiagnosticStatus()
         status.name = "slam_bridge"
         status.hardware_id = "slam"

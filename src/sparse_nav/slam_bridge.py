@@ -112,6 +112,9 @@ class Anchor:
     index: int
     t_map_slam: np.ndarray
     metres_per_unit: float
+    # Left by a jump while tracking: SLAM merged this map into another (or re-framed it), so no
+    # later pose is in its frame, and reading one through it would only fit by chance.
+    retired: bool = False
 
     def base_pose(self, t_slam_cam, t_cam_base):
         return self.t_map_slam @ scaled(t_slam_cam, self.metres_per_unit) @ t_cam_base
@@ -158,6 +161,7 @@ class MapAnchors:
             candidate = self.current.base_pose(t_slam_cam, self._t_cam_base)
             step = np.linalg.norm(candidate[:3, 3] - self.last_base[:3, 3])
             if self._needs_check or step > self._cfg.jump_threshold_m:
+                left = self.current
                 best = None if self._new_map_expected else self._best_anchor(t_slam_cam)
                 if best is None:
                     level = planar(*self.last_base[:3, 3], yaw_of(self.last_base))
@@ -168,6 +172,8 @@ class MapAnchors:
                     event = "switched"
                 elif self._needs_check:
                     event = "relocalised"
+                if self.current is not left and not self._needs_check:
+                    left.retired = True
         self._needs_check = False
         self._new_map_expected = False
         self.last_base = self.current.base_pose(t_slam_cam, self._t_cam_base)
@@ -182,7 +188,7 @@ class MapAnchors:
 
     def _best_anchor(self, t_slam_cam):
         best, best_d = None, self._cfg.relocalise_tolerance_m
-        for anchor in self.anchors:
+        for anchor in (a for a in self.anchors if not a.retired):
             d = np.linalg.norm(anchor.base_pose(t_slam_cam, self._t_cam_base)[:3, 3]
                                - self.last_base[:3, 3])
             if d <= best_d:

@@ -89,6 +89,28 @@ def test_new_map_continues_from_last_pose_and_merge_returns_to_old_anchor():
     np.testing.assert_allclose(base[:3, 3], [1.5, 0.2, 0.0], atol=1e-9)
 
 
+def test_a_map_left_by_a_jump_while_tracking_is_never_picked_again():
+    anchors = MapAnchors(BridgeConfig(), MOUNT)
+    origin = planar(0.0, 0.0, 0.0, 0.0)
+    anchors.update(camera_in_slam(origin, origin, 2.0), 0.5)
+    anchors.update(camera_in_slam(origin, planar(1.0, 0.0, 0.0, 0.0), 2.0), 0.5)
+    anchors.tracking_lost()
+    anchors.expect_new_map()
+    new_origin = planar(1.0, 0.0, 0.0, 0.0)
+    anchors.update(camera_in_slam(new_origin, new_origin, 5.0), 0.2)
+    anchors.update(camera_in_slam(new_origin, planar(3.0, 0.0, 0.0, 0.0), 5.0), 0.2)
+    # While tracking, SLAM merges map 1 into map 0: the pose jumps into map 0's frame.
+    _, event = anchors.update(camera_in_slam(origin, planar(3.0, 0.0, 0.0, 0.0), 2.0), 0.5)
+    assert event == "switched" and anchors.current.index == 0
+    assert anchors.anchors[1].retired and not anchors.anchors[0].retired
+    # Lost, and back 0.6 m on in map 0's frame: map 1's anchor would read that pose 0.56 m
+    # from the last one, nearer than map 0's own 0.6 m, yet it is map 0's.
+    anchors.tracking_lost()
+    base, event = anchors.update(camera_in_slam(origin, planar(3.6, 0.0, 0.0, 0.0), 2.0), 0.5)
+    assert event == "relocalised" and anchors.current.index == 0
+    np.testing.assert_allclose(base[:3, 3], [3.6, 0.0, 0.0], atol=1e-9)
+
+
 def test_new_map_detected_without_hint_when_far_from_old_map():
     anchors = MapAnchors(BridgeConfig(relocalise_tolerance_m=1.0), MOUNT)
     origin = np.eye(4)

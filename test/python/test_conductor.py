@@ -242,14 +242,30 @@ def passing_through(config=None):
     return m
 
 
-def test_tracking_lost_outside_the_room_outline_while_passing_through_is_done():
+def test_tracking_lost_outside_the_room_outline_while_passing_through_and_not_back_is_done():
     m = passing_through()
     m.tick(robot_xy=(7.2, 0.0))  # outside, tracking fine: the pass-through goal decides
     assert m.conductor.phase == Phase.PASS_THROUGH
     actions = m.tick(tracking_lost=True, robot_xy=(9.0, 0.0))  # a pose after the loss: unused
+    assert ActionKind.STOP in kinds(actions) and m.conductor.state == State.LOST
+    m.tick(dt=10.0)
+    assert m.conductor.state == State.LOST  # relocalising: another room would have walls
+    actions = m.tick(dt=10.0)
     assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
     assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
-    assert "tracking lost 1.20 m outside" in m.conductor.reason
+    assert m.conductor.reason == ("left the room: tracking lost 1.20 m outside its outline and "
+                                  "not back in 20 s")
+
+
+def test_tracking_back_soon_after_a_loss_outside_the_outline_goes_on_passing_through():
+    m = passing_through()
+    m.tick(robot_xy=(7.2, 0.0))
+    m.tick(tracking_lost=True)
+    m.tick(scan_running=True)
+    m.tick(dt=5.0)
+    actions = m.tick(tracking_lost=False, scan_running=False)
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.PASS_THROUGH)
+    assert [a.kind for a in actions][-1] == ActionKind.GOAL
 
 
 def test_tracking_lost_inside_or_near_the_outline_or_without_one_relocalises():
@@ -415,10 +431,10 @@ def test_no_map_to_look_around_in_is_done_after_the_exit():
 def test_tracking_lost_looking_around_outside_the_outline_is_done_else_the_last_look_decides():
     m = looking_around()  # at (6.5, 0), 0.5 m outside ROOM
     m.tick(robot_xy=(7.5, 0.0), walls_around=WALLS_ROOM)
-    assert kinds(m.tick(tracking_lost=True, walls_around=())) == [ActionKind.CANCEL_GOAL,
-                                                                  ActionKind.STOP]
+    m.tick(tracking_lost=True, walls_around=())
+    assert kinds(m.tick(dt=20.0)) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
     assert (m.conductor.phase, m.conductor.reason) == (
-        Phase.DONE, "left the room: tracking lost 1.50 m outside its outline")
+        Phase.DONE, "left the room: tracking lost 1.50 m outside its outline and not back in 20 s")
     m = looking_around()
     m.tick(walls_around=WALLS_ROOM)
     m.tick(tracking_lost=True, walls_around=())

@@ -112,7 +112,8 @@ class ConductorConfig:
     exit_check_far_m: float = 1.2        # ... exit candidate up to this far (m): candidates with
     exit_min_free_share: float = 0.1     # at least this share free there go first
     reached_tolerance_m: float = 0.4     # the navigator's "reached" or this close counts
-    left_room_margin_m: float = 1.0      # lost this far outside the outline passing through: out
+    left_room_margin_m: float = 1.0      # lost this far outside the outline passing through,
+    left_room_wait_s: float = 20.0       # ... and not back within this: out (back: another room?)
     inside_room_margin_m: float = 0.5    # passed through yet this far inside the outline: the
     rejected_exit_radius_m: float = 1.0  # ... exit was wrong; later candidates this close to it
                                          # are skipped
@@ -146,7 +147,7 @@ class ConductorConfig:
                      "lost_timeout_s", "recover_timeout_s", "recover_clear_s",
                      "left_room_margin_m", "inside_room_margin_m", "rejected_exit_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m",
-                     "walls_around_range_m", "merge_wait_s", "map_settle_s"):
+                     "walls_around_range_m", "merge_wait_s", "map_settle_s", "left_room_wait_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -323,15 +324,20 @@ class Conductor:
 
     def _left_the_room(self, t, obs):
         """DONE when tracking is lost while passing through or looking around beyond the exit
-        with the last tracked position clearly outside the room outline: a robot often loses
-        tracking right after a door, facing what it has never seen (a room it has entered has
-        walls to track). Without a loss the pass-through goal and the look around decide,
-        because the outline covers only what the scan saw (an L-shaped room's far arm lies
-        outside it)."""
-        outside = self._lost_outside_by(obs) if obs.tracking_lost else None
-        if outside is None or outside < self.config.left_room_margin_m:
+        with the last tracked position clearly outside the room outline, and not back within
+        left_room_wait_s: a robot often loses tracking right after a door, facing what it has
+        never seen. Tracking that comes back there is a room with walls to track (beyond a
+        partition's door), whose look around decides. Without a loss the pass-through goal
+        and the look around decide, because the outline covers only what the scan saw (an
+        L-shaped room's far arm lies outside it)."""
+        cfg = self.config
+        if not obs.tracking_lost or self.state != State.LOST:
             return None
-        return self._out(t, outside, "")
+        outside = self._lost_outside_by(obs)
+        if outside is None or outside < cfg.left_room_margin_m \
+                or t - self._lost_since_s < cfg.left_room_wait_s:
+            return None
+        return self._out(t, outside, f" and not back in {cfg.left_room_wait_s:g} s")
 
     def _lost_outside_by(self, obs):
         """While passing through or looking around beyond the exit, how far outside the room

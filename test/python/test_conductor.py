@@ -401,18 +401,28 @@ def test_the_first_rooms_untried_candidates_come_after_the_new_rooms():
     assert m.conductor._alternatives == [(0.0, 5.0)]
 
 
-def test_walls_around_without_an_exit_but_the_door_come_through_are_no_room_done():
+def test_walls_around_without_an_exit_but_the_door_come_through_scan_more_then_are_no_room():
     m = looking_around()
     m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    for attempt in (1, 2):
+        actions = m.tick(exit_answered=True, exit_xy=(5.0, 0.1), exit_alternatives=())
+        # A second room's exit may lie where the look around did not see: scan, ask again.
+        assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
+        assert m.conductor.reason == ("the walls around hold no exit but the door come through: "
+                                      "scan more")
+        assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
     actions = m.tick(exit_answered=True, exit_xy=(5.0, 0.1), exit_alternatives=())
     assert kinds(actions) == [ActionKind.STOP]
     assert (m.conductor.phase, m.conductor.reason) == (
         Phase.DONE, "passed through the exit: the walls around hold no exit but the door come "
-                    "through")
+                    "through after 3 attempts")
     m = looking_around()
     m.tick(scan_running=False, walls_around=WALLS_ROOM)
     m.tick(exit_answered=True, exit_xy=None)
-    assert m.conductor.phase == Phase.DONE
+    m.run_scan()
+    # The scan showed the second room's exit.
+    actions = m.tick(exit_answered=True, exit_xy=(9.0, 3.0))
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (9.0, 3.0))]
 
 
 def test_an_opening_only_toward_the_door_come_through_is_another_room():

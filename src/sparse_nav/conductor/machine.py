@@ -617,10 +617,14 @@ class Conductor:
                           if not self._was_rejected(c, obs.slam_map_index, obs)]
         if answered and self._room_unconfirmed:
             if not candidates:
-                # Walls all round, yet the finder sees no room with an exit in them but the door
-                # come through: the space between a building and what stands beyond its exit.
-                self._set(t, State.IDLE, Phase.DONE, "passed through the exit: the walls around "
-                                                     "hold no exit but the door come through")
+                why = "the walls around hold no exit but the door come through"
+                if self._exit_attempts < cfg.max_exit_attempts:
+                    # A second room's exit may lie where the look around did not see.
+                    self._set(t, State.START, Phase.WALL_SCAN, f"{why}: scan more")
+                    return [self._scan("random")]
+                # Still none: the space between a building and what stands beyond its exit.
+                self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {why} after "
+                                                     f"{self._exit_attempts} attempts")
                 return [Action(ActionKind.STOP)]
             self._room_unconfirmed = False
         if candidates:

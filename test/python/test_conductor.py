@@ -257,6 +257,21 @@ def test_tracking_lost_outside_the_room_outline_while_passing_through_and_not_ba
                                   "not back in 20 s")
 
 
+def test_out_beyond_the_exit_stays_out_after_a_new_slam_map_takes_the_outline_away():
+    m = passing_through()
+    m.tick(robot_xy=(7.5, 0.0))  # 1.5 m outside ROOM
+    m.tick(tracking_lost=True)
+    m.tick(scan_running=True)
+    # Back within left_room_wait_s, but in a new SLAM map: no outline; the goal waits for a merge.
+    m.tick(dt=5.0, tracking_lost=False, slam_map_index=1, room_outline=(), robot_xy=(0.0, 0.0))
+    assert m.conductor.state == State.LOST
+    m.tick(tracking_lost=True)
+    actions = m.tick(dt=20.0)
+    assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert m.conductor.reason == ("left the room: tracking lost 1.50 m outside its outline and "
+                                  "not back in 20 s")
+
+
 def test_tracking_back_soon_after_a_loss_outside_the_outline_goes_on_passing_through():
     m = passing_through()
     m.tick(robot_xy=(7.2, 0.0))

@@ -242,6 +242,9 @@ class Conductor:
         self._map_index_seen = None
         self._map_changed_s = None  # when the SLAM map index last changed
         self._last_tracked_xy: Optional[Tuple[float, float]] = None
+        # Beyond the exit: how far outside the room outline the robot was last tracked while the
+        # outline was at hand (a change of SLAM map takes the outline away, not where it was).
+        self._outside_by = 0.0
         self._last_walls_around = ()  # the newest look around while tracking
 
     def _scan(self, name):
@@ -284,6 +287,8 @@ class Conductor:
             return out
         if not obs.tracking_lost and obs.robot_xy is not None:
             self._last_tracked_xy = tuple(obs.robot_xy)
+            if self.phase in (Phase.PASS_THROUGH, Phase.LOOK_AROUND) and len(obs.room_outline) >= 3:
+                self._outside_by = distance_outside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.LOOK_AROUND and len(obs.walls_around):
                 self._last_walls_around = tuple(obs.walls_around)
         if self.phase == Phase.FIND_EXIT and obs.exit_answered:
@@ -311,6 +316,7 @@ class Conductor:
         self._alternatives_map = self._merge_wait_since_s = None
         self._rescans = 0
         self._last_walls_around = ()
+        self._outside_by = 0.0
         self._room_unconfirmed = False
         self.exit_xy = self.goal_xy = None
         self._rejected = []
@@ -344,7 +350,9 @@ class Conductor:
         outline the last tracked position lies (0 inside it or without an outline); else None."""
         if self.phase not in (Phase.PASS_THROUGH, Phase.LOOK_AROUND):
             return None
-        return distance_outside(self._last_tracked_xy, obs.room_outline)
+        if len(obs.room_outline) >= 3:
+            return distance_outside(self._last_tracked_xy, obs.room_outline)
+        return self._outside_by
 
     def _out(self, t, outside, why):
         self._set(t, State.IDLE, Phase.DONE,
@@ -589,6 +597,7 @@ class Conductor:
             self._rejected.append((obs.slam_map_index, self._door_xy))
         self.rooms += 1
         self._room_unconfirmed = True
+        self._outside_by = 0.0
         self.room_origin_xy = obs.robot_xy or self._last_tracked_xy
         self._exit_viewpoint = "robot"
         self._exit_attempts = 0
@@ -650,6 +659,8 @@ class Conductor:
         return [self._scan("random")]
 
     def _navigate(self, t, phase, goal_xy, why):
+        if phase == Phase.GO_TO_EXIT:
+            self._outside_by = 0.0
         self.goal_xy = tuple(goal_xy)
         self._goal_failures = 0
         self._failure_since_s = None

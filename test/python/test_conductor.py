@@ -536,6 +536,24 @@ def test_a_loss_during_a_scan_is_left_to_the_scan_retries():
     assert m.conductor.phase == Phase.WALL_SCAN
 
 
+def test_a_scan_whose_retries_do_not_bring_tracking_back_gives_way_to_relocalising():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, scan_retry_lost_s=15.0))
+    m.tick(start_requested=True)
+    m.tick(scan_running=True)
+    m.tick(tracking_lost=True)
+    assert m.tick(dt=10.0) == []  # the scan's retries still try
+    actions = m.tick(dt=6.0)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
+                                                      (ActionKind.SCAN, "relocalise")]
+    assert m.conductor.state == State.LOST and "relocalising" in m.conductor.reason
+    assert m.tick(dt=10.0) == []  # relocalising is not stopped for relocalising
+    # Back: the relocalising motion stops, and the cut scan is judged by the phase's rules.
+    actions = m.tick(tracking_lost=False)
+    assert kinds(actions) == [ActionKind.STOP]
+    actions = m.tick(scan_running=False, map_ready=True)
+    assert m.conductor.phase == Phase.INITIAL_SCAN and "scan again" in m.conductor.reason
+
+
 def test_a_scan_that_ended_while_lost_counts_as_cut_short_and_the_phase_rules_go_on():
     m = Mission()
     m.tick(start_requested=True)

@@ -121,6 +121,8 @@ class ConductorConfig:
     stall_progress_m: float = 0.2        # ... progress: this much closer than ever before
     exit_near_m: float = 1.0             # stalled this close to the exit: pass through from there
     lost_timeout_s: float = 60.0         # tracking lost this long: gave up (out, past an exit)
+    scan_retry_lost_s: float = 15.0      # lost this long in a scan's retries (one step undone
+                                         # and redone on one line): stop it, relocalise instead
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
     recover_clear_s: float = 10.0        # back inside within this of getting out: the same
                                          # episode, its time counts on (a robot on a cell's edge)
@@ -147,7 +149,8 @@ class ConductorConfig:
                      "lost_timeout_s", "recover_timeout_s", "recover_clear_s",
                      "left_room_margin_m", "inside_room_margin_m", "rejected_exit_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m",
-                     "walls_around_range_m", "merge_wait_s", "map_settle_s", "left_room_wait_s"):
+                     "walls_around_range_m", "merge_wait_s", "map_settle_s", "left_room_wait_s",
+                     "scan_retry_lost_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -384,6 +387,12 @@ class Conductor:
                 return self._give_up(t, f"SLAM tracking lost for more than {cfg.lost_timeout_s:g} s")
             if not obs.scan_running:
                 return [self._scan("relocalise")]
+            if self._scan_kind != "relocalise" and t - self._lost_since_s > cfg.scan_retry_lost_s:
+                # A retried step goes back and forth along one short line: too little baseline
+                # for SLAM to start a new map (0.3 m for 30 s in a ground robot's scan).
+                self._set(t, State.LOST, self.phase, f"SLAM tracking not back in "
+                          f"{cfg.scan_retry_lost_s:g} s of the scan's retries: relocalising")
+                return [Action(ActionKind.STOP), self._scan("relocalise")]
             return []
         if self.state == State.LOST and self._goal_in_another_map(obs):
             return self._wait_for_merge(t, obs)

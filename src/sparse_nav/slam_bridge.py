@@ -254,12 +254,14 @@ class MapScales:
         self._by_map = {}
 
     def on_map_event(self, index, event):
-        """The anchor event of MapAnchors.update for the map ``index`` (None: no change)."""
+        """The anchor event of MapAnchors.update for the map ``index`` (None: no change). Every
+        map switched to began with a "first" or "new_map" event."""
         if event == "new_map":
             self.current = self.current.fresh()
+        if event in ("first", "new_map"):
+            self._by_map[index] = self.current
         elif event == "switched":
-            self.current = self._by_map.get(index) or self.current.fresh()
-        self._by_map[index] = self.current
+            self.current = self._by_map[index]
 
 
 _MOVE = re.compile(r"^\s*(forward|back|left|right|up|down)\s+(\d+)\s*$")

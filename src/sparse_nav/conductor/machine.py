@@ -243,6 +243,7 @@ class Conductor:
         self._scan_kind = None
         self._scan_map_index = None  # the SLAM map when the running scan began
         self._map_index_seen = None
+        self._merges_applied = 0  # how many of Observation.slam_merges are applied
         self._map_changed_s = None  # when the SLAM map index last changed
         self._last_tracked_xy: Optional[Tuple[float, float]] = None
         # Beyond the exit: how far outside the room outline the robot was last tracked while the
@@ -281,6 +282,7 @@ class Conductor:
         if obs.return_requested and self.start_xy is not None:
             return self._navigate(t, Phase.RETURN_TO_START, self.start_xy, "return to start requested")
 
+        self._follow_merges(obs)
         if obs.slam_map_index != self._map_index_seen:
             if self._map_index_seen is not None:
                 self._map_changed_s = t
@@ -342,19 +344,17 @@ class Conductor:
         cfg = self.config
         if not obs.tracking_lost or self.state != State.LOST:
             return None
-        outside = self._lost_outside_by(obs)
+        outside = self._lost_outside_by()
         if outside is None or outside < cfg.left_room_margin_m \
                 or t - self._lost_since_s < cfg.left_room_wait_s:
             return None
         return self._out(t, outside, f" and not back in {cfg.left_room_wait_s:g} s")
 
-    def _lost_outside_by(self, obs):
+    def _lost_outside_by(self):
         """While passing through or looking around beyond the exit, how far outside the room
-        outline the last tracked position lies (0 inside it or without an outline); else None."""
+        outline the robot was last tracked (0 inside it or without an outline); else None."""
         if self.phase not in (Phase.PASS_THROUGH, Phase.LOOK_AROUND):
             return None
-        if len(obs.room_outline) >= 3:
-            return distance_outside(self._last_tracked_xy, obs.room_outline)
         return self._outside_by
 
     def _out(self, t, outside, why):
@@ -380,7 +380,7 @@ class Conductor:
             if t - self._lost_since_s > cfg.lost_timeout_s:
                 # Within left_room_margin_m the robot may still be in the door; but one there,
                 # turning to relocalise, would see the mapped room again: still lost, it is out.
-                outside = self._lost_outside_by(obs)
+                outside = self._lost_outside_by()
                 if outside is not None and outside > 0:
                     return self._out(t, outside, f" and not back in {cfg.lost_timeout_s:g} s "
                                                  f"of relocalising")
@@ -448,18 +448,16 @@ class Conductor:
             return [Action(ActionKind.STOP), Action(ActionKind.RECOVER_MOTION)]
         return None
 
-    @staticmethod
-    def _same_map(a, b, obs):
-        """SLAM maps a and b are one, following merges."""
-        merged = dict(obs.slam_merges)
-        ends = []
-        for index in (a, b):
-            seen = set()
-            while index in merged and index not in seen:
-                seen.add(index)
-                index = merged[index]
-            ends.append(index)
-        return ends[0] == ends[1]
+    def _follow_merges(self, obs):
+        """What was filed under a SLAM map that has since merged into another (the exit and its
+        alternatives, the running scan, rejected exits) is filed under the one it merged into."""
+        for old, new in obs.slam_merges[self._merges_applied:]:
+            if self._alternatives_map == old:
+                self._alternatives_map = new
+            if self._scan_map_index == old:
+                self._scan_map_index = new
+            self._rejected = [(new if m == old else m, xy) for m, xy in self._rejected]
+        self._merges_applied = len(obs.slam_merges)
 
     def _goal_in_another_map(self, obs):
         """Tracking is back on the way to or through an exit, but in another SLAM map than the
@@ -467,7 +465,7 @@ class Conductor:
         return (self._resume_state == State.GOAL
                 and self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH)
                 and None not in (self._alternatives_map, obs.slam_map_index)
-                and not self._same_map(self._alternatives_map, obs.slam_map_index, obs))
+                and obs.slam_map_index != self._alternatives_map)
 
     def _wait_for_merge(self, t, obs):
         """Relocalise (stay LOST) until SLAM merges the new map back into the exit's, at most
@@ -534,8 +532,7 @@ class Conductor:
             # room scanned since: scan the whole room again in it while rounds are left; so does
             # a scan cut short by a loss.
             rounds_left = self._scan_rounds < cfg.max_scan_rounds
-            map_changed = (not self._same_map(self._scan_map_index, obs.slam_map_index, obs)
-                           and rounds_left)
+            map_changed = obs.slam_map_index != self._scan_map_index and rounds_left
             cut = cut and rounds_left
             if obs.map_ready and not obs.scan_failed and not map_changed and not cut:
                 if cfg.wall_scan_enabled:
@@ -632,7 +629,7 @@ class Conductor:
         candidates = []
         if answered and exit_xy is not None:
             candidates = [c for c in [tuple(exit_xy)] + [tuple(xy) for xy in alternatives]
-                          if not self._was_rejected(c, obs.slam_map_index, obs)]
+                          if not self._was_rejected(c, obs.slam_map_index)]
         if answered and self._room_unconfirmed:
             if not candidates:
                 why = "the walls around hold no exit but the door come through"
@@ -647,9 +644,9 @@ class Conductor:
             self._room_unconfirmed = False
         if candidates:
             # The room before's untried candidates come last (a door into a room with no exit).
-            if self._same_map(self._alternatives_map, obs.slam_map_index, obs):
+            if self._alternatives_map == obs.slam_map_index:
                 candidates += [c for c in self._alternatives if c not in candidates
-                               and not self._was_rejected(c, obs.slam_map_index, obs)]
+                               and not self._was_rejected(c, obs.slam_map_index)]
         if candidates:
             self._alternatives_map = obs.slam_map_index
             self.exit_xy = candidates[0]
@@ -703,7 +700,7 @@ class Conductor:
             inside = distance_inside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.PASS_THROUGH and inside >= cfg.inside_room_margin_m:
                 return self._wrong_exit(
-                    t, obs, f"passed through ({self.exit_xy[0]:.2f}, "
+                    t, obs.slam_map_index, f"passed through ({self.exit_xy[0]:.2f}, "
                     f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the room outline: not an exit")
             if self.phase == Phase.PASS_THROUGH:
                 return self._look_around(t, "passed through the exit: look around", self.exit_xy)
@@ -735,17 +732,15 @@ class Conductor:
             self._failure_since_s = None
         return []
 
-    def _was_rejected(self, xy, map_index, obs):
+    def _was_rejected(self, xy, map_index):
         """Near an exit rejected in the same SLAM map (another map's coordinates say nothing)."""
-        return any(self._same_map(m, map_index, obs)
-                   and math.dist(xy, r) < self.config.rejected_exit_radius_m
+        return any(m == map_index and math.dist(xy, r) < self.config.rejected_exit_radius_m
                    for m, r in self._rejected)
 
-    def _wrong_exit(self, t, obs, why):
+    def _wrong_exit(self, t, map_index, why):
         """The exit led nowhere: it and candidates near it are out of the running."""
-        self._rejected.append((obs.slam_map_index, self.exit_xy))
-        self._alternatives = [c for c in self._alternatives
-                              if not self._was_rejected(c, obs.slam_map_index, obs)]
+        self._rejected.append((map_index, self.exit_xy))
+        self._alternatives = [c for c in self._alternatives if not self._was_rejected(c, map_index)]
         return self._next_exit(t, why, f"{why}, and no candidate is left")
 
     def _next_exit(self, t, why, given_up, scan_first=False):

@@ -70,6 +70,46 @@ def sway(config=None):
     ]
 
 
+@dataclasses.dataclass
+class RelocaliseConfig:
+    """Sizes of the motion that starts a new SLAM map after a loss; defaults written once here."""
+
+    baseline_m: float = 0.6    # ground robot: straight drive out and back (m)
+    min_baseline_m: float = 0.2  # shorter room than this: drive into the other direction anyway
+    standoff_m: float = 0.4    # keep this far from the wall ahead on the map (m)
+    turn_deg: float = 60.0     # turn after each try, so the next sees other features
+
+    def validate(self):
+        if not 0 < self.min_baseline_m <= self.baseline_m:
+            raise ValueError("need 0 < min_baseline_m <= baseline_m")
+        if self.standoff_m < 0:
+            raise ValueError("standoff_m must be >= 0")
+
+
+def relocalise(robot, free_distance=None, config=None, sway_config=None):
+    """One try of the motion that lets monocular SLAM start a new map after a loss, then a turn.
+
+    A new map needs a baseline of about a tenth of the depth of the features the camera sees,
+    with those features in view all along. The drone gets it from the sway, whose moves are
+    sideways. The ground robot cannot move sideways, and its sway turns 90 deg to face each side
+    (the initialiser's reference frame is lost with the view), so that its straight legs are
+    0.3 m: too short beyond 4 m of depth. It drives straight instead, out and back along its
+    heading, into whichever side has more room (free_distance(bearing_deg) -> free metres, as in
+    random_scan; None: forward).
+    """
+    cfg = config or RelocaliseConfig()
+    cfg.validate()
+    turn = Step(ccw_deg=cfg.turn_deg)
+    if robot == "drone":
+        return sway(sway_config) + [turn]
+    ahead = free_distance(0.0) if free_distance else math.inf
+    behind = free_distance(180.0) if free_distance else 0.0
+    sign = 1.0 if ahead >= behind else -1.0
+    room = max(ahead, behind) - cfg.standoff_m
+    distance = round(min(cfg.baseline_m, max(cfg.min_baseline_m, room)), 2)
+    return [Step(forward_m=sign * distance), Step(forward_m=-sign * distance), turn]
+
+
 def initial_scan(config=None):
     """The seed 000 initial scan as a list of Steps (a, b, c, d, e per iteration until a full turn)."""
     cfg = config or InitialScanConfig()

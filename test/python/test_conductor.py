@@ -547,26 +547,78 @@ def test_a_scan_whose_retries_do_not_bring_tracking_back_gives_way_to_relocalisi
                                                       (ActionKind.SCAN, "relocalise")]
     assert m.conductor.state == State.LOST and "relocalising" in m.conductor.reason
     assert m.tick(dt=10.0) == []  # relocalising is not stopped for relocalising
-    # Back: the relocalising motion stops, and the cut scan is judged by the phase's rules.
+    # Back: the relocalising motion stops, and the stopped scan goes on.
     actions = m.tick(tracking_lost=False)
     assert kinds(actions) == [ActionKind.STOP]
-    actions = m.tick(scan_running=False, map_ready=True)
-    assert m.conductor.phase == Phase.INITIAL_SCAN and "scan again" in m.conductor.reason
+    actions = m.tick(scan_running=False, map_ready=True, scan_resumable=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "resume")]
 
 
-def test_a_scan_that_ended_while_lost_counts_as_cut_short_and_the_phase_rules_go_on():
+def test_a_scan_stopped_for_relocalising_goes_on_where_it_was_cut():
+    m = Mission(ConductorConfig(scan_retry_lost_s=15.0, max_scan_resumes=2))
+    m.tick(start_requested=True)
+    m.tick(scan_running=True, slam_map_index=0)
+    for resume in (1, 2):
+        m.tick(tracking_lost=True)
+        actions = m.tick(dt=16.0)  # the retries did not bring tracking back
+        assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
+                                                          (ActionKind.SCAN, "relocalise")]
+        # Back in a new map that merged into the scan's map 0: the stopped scan goes on.
+        m.tick(tracking_lost=False, slam_map_index=resume)
+        m.tick(slam_map_index=0, slam_merges=m.obs.slam_merges + ((resume, 0),))
+        actions = m.tick(scan_running=False, scan_resumable=True)
+        assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "resume")]
+        assert (m.conductor.state, m.conductor.phase) == (State.START, Phase.INITIAL_SCAN)
+        assert f"goes on where the loss cut it ({resume}/2)" in m.conductor.reason
+        m.tick(scan_running=True, scan_resumable=False)
+    # Resumed, the scan is still the one begun in map 0: it ends, and the map is the room's.
+    actions = m.tick(dt=6.0, scan_running=False, map_ready=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.FIND_EXIT, None)]
+    # A third cut is one too many: judged cut short, the initial scan is done again.
+    m2 = Mission(ConductorConfig(max_scan_resumes=1))
+    m2.tick(start_requested=True)
+    for expected in ("resume", "random"):
+        m2.tick(scan_running=True, scan_resumable=False)
+        m2.tick(tracking_lost=True)
+        m2.tick(dt=16.0)
+        m2.tick(tracking_lost=False)
+        actions = m2.tick(scan_running=False, scan_resumable=True, map_ready=True)
+        assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, expected)]
+    assert "the scan ended while SLAM tracking was lost: scan again (2/3)" in m2.conductor.reason
+
+
+def test_a_resumed_scan_in_a_new_map_that_never_merged_is_judged_by_where_it_began():
     m = Mission()
     m.tick(start_requested=True)
-    m.tick(scan_running=True)
+    m.tick(scan_running=True, slam_map_index=0)
     m.tick(tracking_lost=True)
-    assert [(a.kind, a.payload) for a in m.tick(scan_running=False)] == [
-        (ActionKind.SCAN, "relocalise")]
-    m.tick(scan_running=True)
-    actions = m.tick(tracking_lost=False)
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None)]
-    actions = m.tick(scan_running=False, map_ready=True)
+    m.tick(dt=16.0)
+    m.tick(tracking_lost=False, slam_map_index=1)
+    actions = m.tick(scan_running=False, scan_resumable=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "resume")]
+    m.tick(scan_running=True, scan_resumable=False)
+    actions = m.tick(dt=6.0, scan_running=False, map_ready=True)
+    # Map 1 holds only what was scanned since the loss: the whole room is scanned again.
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
-    assert "the scan ended while SLAM tracking was lost: scan again (2/3)" in m.conductor.reason
+    assert "the SLAM map changed during the scan: scan again (2/3)" in m.conductor.reason
+
+
+def test_a_scan_that_ran_all_its_steps_while_lost_is_judged_as_any_ended_scan():
+    for new_map, expected in ((False, (ActionKind.FIND_EXIT, None)), (True, (ActionKind.SCAN,
+                                                                             "random"))):
+        m = Mission()
+        m.tick(start_requested=True)
+        m.tick(scan_running=True, slam_map_index=0)
+        m.tick(tracking_lost=True)
+        assert [(a.kind, a.payload) for a in m.tick(scan_running=False)] == [
+            (ActionKind.SCAN, "relocalise")]
+        m.tick(scan_running=True)
+        actions = m.tick(tracking_lost=False, slam_map_index=1 if new_map else 0)
+        assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None)]
+        actions = m.tick(dt=6.0, scan_running=False, map_ready=True)
+        assert [(a.kind, a.payload) for a in actions] == [expected]
+        if new_map:  # what was mapped before the loss is not in map 1
+            assert "the SLAM map changed during the scan: scan again (2/3)" in m.conductor.reason
 
 
 def test_a_robot_that_keeps_losing_tracking_in_its_scans_does_not_scan_forever():
@@ -1017,3 +1069,17 @@ def test_no_merge_back_past_the_exit_looks_around_in_the_new_map():
     # rejected and no opening is left out.
     m.tick(scan_running=False, walls_around=WALLS_ROOM)
     assert m.conductor.phase == Phase.FIND_EXIT and m.conductor._rejected == []
+
+
+def test_an_interrupted_step_is_done_again_when_the_scan_goes_on():
+    a, b, c = Step(forward_m=0.3), Step(ccw_deg=30.0), Step(forward_m=-0.3)
+    runner = ScanRunner([a, b, c])
+    runner.next_step()
+    runner.report(True)
+    assert runner.next_step() == (b, 1.0)
+    runner.interrupt()  # stopped for relocalising in the middle of b
+    assert not runner.done and runner.soft_fails == 0
+    assert run(runner, []) == [(b, 1.0), (c, 1.0)]
+    assert runner.succeeded == [a, b, c]
+    runner.interrupt()  # nothing in progress: nothing to redo
+    assert runner.done

@@ -10,10 +10,11 @@ import re
 import yaml
 
 from sparse_nav.conductor import ConductorConfig, ScanRunnerConfig
-from sparse_nav.scanning import InitialScanConfig, WallScanConfig
+from sparse_nav.scanning import InitialScanConfig, RelocaliseConfig, WallScanConfig
 
 ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
-GROUPS = {"initial_scan": InitialScanConfig, "wall_scan": WallScanConfig, "retry": ScanRunnerConfig}
+GROUPS = {"initial_scan": InitialScanConfig, "wall_scan": WallScanConfig, "retry": ScanRunnerConfig,
+          "relocalise": RelocaliseConfig}
 
 
 def load():

@@ -4,10 +4,13 @@ import math
 import numpy as np
 import pytest
 
-from sparse_nav.scanning import (GROUND_TURN_RATE_RAD_S, InitialScanConfig, Step, WallScanConfig,
-                                 circular_scan, initial_scan, random_scan, sway, to_tello_commands,
-                                 to_velocity_segments, wall_scan)
-from sparse_nav.sim import SimConfig
+from sparse_nav.scanning import (GROUND_TURN_RATE_RAD_S, InitialScanConfig, RelocaliseConfig, Step,
+                                 WallScanConfig, circular_scan, initial_scan, random_scan,
+                                 relocalise, sway, to_tello_commands, to_velocity_segments,
+                                 wall_scan)
+from sparse_nav.sim import SimConfig, load_world
+from sparse_nav.sim.simulator import Simulator
+from sparse_nav.sim.slam import TrackingState
 
 
 def test_initial_scan_turns_a_full_circle_and_returns_each_iteration():
@@ -113,6 +116,49 @@ def test_sway_is_the_initial_scan_iteration_without_its_turn():
     assert steps == initial_scan()[:6]
     assert sum(s.forward_m for s in steps) == pytest.approx(0.0)
     assert sum(s.ccw_deg for s in steps) == pytest.approx(0.0)
+
+
+def test_the_drone_relocalises_with_the_sway_and_a_turn():
+    assert relocalise("drone") == sway() + [Step(ccw_deg=RelocaliseConfig().turn_deg)]
+    assert relocalise("drone", config=RelocaliseConfig(turn_deg=-45.0))[-1] == Step(ccw_deg=-45.0)
+
+
+def test_the_ground_robot_relocalises_straight_into_the_side_with_room():
+    # No sideways step: a unicycle would turn to face the side, and the view with it.
+    out_back = relocalise("ground")
+    assert out_back == [Step(forward_m=0.6), Step(forward_m=-0.6), Step(ccw_deg=60.0)]
+    assert all(s.left_m == 0.0 for s in out_back)
+    wall_ahead = relocalise("ground", lambda bearing: 0.5 if bearing == 0.0 else 3.0)
+    assert wall_ahead[:2] == [Step(forward_m=-0.6), Step(forward_m=0.6)]
+    cramped = relocalise("ground", lambda bearing: 0.8 if bearing == 0.0 else 0.3)
+    assert cramped[:2] == [Step(forward_m=0.4), Step(forward_m=-0.4)]  # 0.8 - standoff
+    boxed_in = relocalise("ground", lambda bearing: 0.1)
+    assert boxed_in[0] == Step(forward_m=0.2)  # min_baseline_m: a try moves all the same
+    with pytest.raises(ValueError, match="min_baseline_m"):
+        relocalise("ground", config=RelocaliseConfig(baseline_m=0.1))
+
+
+def test_relocalising_starts_a_new_map_after_a_forced_loss_in_the_simulator():
+    """The ground robot, lost in its first sway, stops; standing still, SLAM cannot start a new
+    map (no baseline); the relocalising motion gets it one."""
+    sim = Simulator(load_world("one_room"), SimConfig(robot="ground", seed=1,
+                                                      force_loss_at_s=[6.0]))
+    for v, w, duration in to_velocity_segments(sway()):
+        sim.set_cmd_vel(v, w)
+        end = sim.time_s + duration
+        while sim.time_s < end - 1e-9 and not sim.tracking_losses:
+            sim.step(0.05)
+    assert sim.tracking_losses == 1
+    sim.set_cmd_vel(0.0, 0.0)
+    sim.step(5.0)
+    assert sim.slam_output().state == TrackingState.NOT_INITIALIZED
+    lost_map = sim.slam_output().map_id
+    for v, w, duration in to_velocity_segments(relocalise("ground")):
+        sim.set_cmd_vel(v, w)
+        sim.step(duration)
+    assert sim.slam_output().state == TrackingState.OK
+    # The new map started at the loss saw the first map's points and merged back into it.
+    assert lost_map == 1 and sim.slam_output().map_id == 0
 
 
 def test_default_ground_scan_turns_within_what_the_robot_and_tracking_allow():

@@ -48,7 +48,7 @@ class Phase(enum.Enum):
 
 class ActionKind(enum.Enum):
     SCAN = "scan"            # payload: scan name ("initial", "wall", "random", "relocalise",
-                             # "look_around")
+                             # "look_around"; "resume": go on with the scan a loss cut)
     FIND_EXIT = "find_exit"  # ask the exit finder; payload: its viewpoint (None: its default)
     GOAL = "goal"            # payload: (x, y) in the map frame
     CANCEL_GOAL = "cancel_goal"
@@ -77,6 +77,7 @@ class Observation:
     robot_in_obstacle: bool = False
     scan_running: bool = False
     scan_failed: bool = False            # the last scan ended with too many soft fails
+    scan_resumable: bool = False         # a stopped phase scan has steps left to go on with
     exit_xy: Optional[Tuple[float, float]] = None  # the newest answer of the exit finder
     exit_alternatives: Tuple = ()        # its further candidates, best first
     exit_answered: bool = False          # the exit finder answered since the last request
@@ -100,6 +101,8 @@ class ConductorConfig:
 
     wall_scan_enabled: bool = False      # 000 step 2 (off: in the sim its approaches cost losses)
     max_scan_rounds: int = 3             # initial scans without a map before giving up
+    max_scan_resumes: int = 15           # a phase scan cut by losses goes on where it was cut
+                                         # this often; then the phase's rules judge it as cut
     max_exit_attempts: int = 3           # exit finder answers without an exit before giving up
     exit_answer_timeout_s: float = 20.0  # no answer from the exit finder in this time: retry
     max_goal_failures: int = 3           # navigator no_path/goal_in_obstacle answers per goal
@@ -121,7 +124,7 @@ class ConductorConfig:
     stall_progress_m: float = 0.2        # ... progress: this much closer than ever before
     exit_near_m: float = 1.0             # stalled this close to the exit: pass through from there
     lost_timeout_s: float = 60.0         # tracking lost this long: gave up (out, past an exit)
-    scan_retry_lost_s: float = 15.0      # lost this long in a scan's retries (one step undone
+    scan_retry_lost_s: float = 5.0       # lost this long in a scan's retries (one step undone
                                          # and redone on one line): stop it, relocalise instead
     recover_timeout_s: float = 30.0      # inside an obstacle longer than this: gave up
     recover_clear_s: float = 10.0        # back inside within this of getting out: the same
@@ -141,7 +144,7 @@ class ConductorConfig:
     walls_around_range_m: float = 8.0    # ... walls this close count (the node's grid query)
 
     def validate(self):
-        for name in ("max_scan_rounds", "max_exit_attempts", "max_goal_failures",
+        for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts", "max_goal_failures",
                      "max_goal_losses", "max_rooms", "max_rescans"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -241,6 +244,7 @@ class Conductor:
         self._scan_started = False
         self._scan_cut = False  # the running phase scan ended while tracking was lost
         self._scan_kind = None
+        self._scan_resumes = 0  # of the present phase scan
         self._scan_map_index = None  # the SLAM map when the running scan began
         self._map_index_seen = None
         self._merges_applied = 0  # how many of Observation.slam_merges are applied
@@ -253,6 +257,8 @@ class Conductor:
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
+        if name not in ("relocalise", "resume"):
+            self._scan_resumes = 0
         self._scan_kind = name
         self._scan_started = False
         return Action(ActionKind.SCAN, name)
@@ -515,16 +521,27 @@ class Conductor:
     def _start_state(self, t, obs):
         cfg = self.config
         if obs.scan_running:
-            if not self._scan_started:
+            if not self._scan_started and self._scan_kind != "resume":
                 self._scan_map_index = obs.slam_map_index
             self._scan_started = True
             return []
         if not self._scan_started:
             return []  # the scan was asked for and has not begun yet
+        if self._scan_cut and obs.scan_resumable and self._scan_resumes < cfg.max_scan_resumes:
+            # Restarted after every loss, a scan longer than the time between losses (the
+            # ground robot's initial scan takes about 290 s) would never end. What SLAM mapped
+            # before the loss is in the map again once the new map merges back.
+            self._scan_cut = False
+            self._scan_resumes += 1
+            self._set(t, State.START, self.phase, f"SLAM tracking back: the scan goes on where "
+                      f"the loss cut it ({self._scan_resumes}/{cfg.max_scan_resumes})")
+            return [self._scan("resume")]
         if self._map_changed_s is not None and t - self._map_changed_s < cfg.map_settle_s:
             return []  # judged once the new SLAM map has merged back or grown a grid
         self._scan_started = False
-        cut, self._scan_cut = self._scan_cut, False
+        # Cut short: steps never run. A scan that ran all its steps, the last while lost, is
+        # judged as any scan that ended (a new SLAM map since it began by the map rule).
+        cut, self._scan_cut = self._scan_cut and obs.scan_resumable, False
         if self.phase == Phase.LOOK_AROUND:
             return self._looked_around(t, obs)
         if self.phase == Phase.INITIAL_SCAN:

@@ -57,6 +57,14 @@ class ScanRunner:
         self._current = self._todo.pop()
         return self._current[0], self._current[1]
 
+    def interrupt(self):
+        """The step in progress was cut off (the scan stopped for relocalising): the next
+        next_step() hands it out again, to be done from its start, and the scan goes on from
+        there. A turn cut halfway so turns a little more than planned; the scan keeps the rest."""
+        if self._current is not None:
+            self._todo.append(self._current)
+            self._current = None
+
     def report_motion(self, moved: bool, lost: bool):
         """After the step from next_step(): whether the motion was carried out and whether SLAM
         tracking is lost after it."""

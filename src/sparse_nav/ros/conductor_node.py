@@ -22,9 +22,9 @@ from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
 from sparse_nav.ros.robot_io import StepExecutor, TelloClient
-from sparse_nav.scanning import (GROUND_SPEED_M_S, GROUND_TURN_RATE_RAD_S, InitialScanConfig, Step,
-                                 WallScanConfig, circular_scan, initial_scan, random_scan, sway,
-                                 wall_scan)
+from sparse_nav.scanning import (GROUND_SPEED_M_S, GROUND_TURN_RATE_RAD_S, InitialScanConfig,
+                                 RelocaliseConfig, Step, WallScanConfig, circular_scan,
+                                 initial_scan, random_scan, relocalise, wall_scan)
 from sparse_nav.srv import FindExit
 
 # Navigator action states as the conductor names them.
@@ -38,6 +38,14 @@ def _dataclass_params(prefix, cls):
     config = read_fields(cls(), [f.name for f in dataclasses.fields(cls)], "~" + prefix)
     config.validate()
     return config
+
+
+def _free_distance(grid, pose):
+    """free_distance(bearing_deg) -> metres free on the grid from pose; None without both."""
+    if grid is None or pose is None:
+        return None
+    x, y, yaw = pose
+    return lambda bearing_deg: grid.free_distance(x, y, yaw + math.radians(bearing_deg))
 
 
 class ConductorNode:
@@ -57,6 +65,7 @@ class ConductorNode:
         self.initial_config = _dataclass_params("initial_scan/", InitialScanConfig)
         self.wall_config = _dataclass_params("wall_scan/", WallScanConfig)
         self.runner_config = _dataclass_params("retry/", ScanRunnerConfig)
+        self.relocalise_config = _dataclass_params("relocalise/", RelocaliseConfig)
 
         self.conductor = Conductor(self.config)
         self.lock = threading.Lock()
@@ -66,9 +75,9 @@ class ConductorNode:
         self.took_off = False
         self.scan_thread = None
         self.scan_stop = threading.Event()
+        self.paused_scan = None  # the ScanRunner of a phase scan stopped with steps left
         self.exit_thread = None
         self.keepalive_s = float(rospy.get_param("~drone_keepalive_s", 8.0))
-        self.relocalise_turn_deg = float(rospy.get_param("~relocalise_turn_deg", 60.0))
         self.landed = False
         self.motion_moving = False
         self.final_since_s = None
@@ -161,6 +170,7 @@ class ConductorNode:
             obs.walls_around = tuple(grid.walls_around(
                 pose[0], pose[1], self.config.walls_around_range_m)) if looking else ()
             obs.scan_running = self.scan_thread is not None and self.scan_thread.is_alive()
+            obs.scan_resumable = self.paused_scan is not None and not self.paused_scan.done
             obs.start_requested = self.requests["start"]
             obs.stop_requested = self.requests["stop"]
             obs.return_requested = self.requests["return"]
@@ -179,8 +189,10 @@ class ConductorNode:
             return circular_scan(self.wall_config)
         if name == "relocalise":
             # 004's LOST: look and move around. Each try also turns, so that a robot stuck
-            # facing a bare wall ends up looking at the mapped room again.
-            return sway(self.initial_config) + [Step(ccw_deg=self.relocalise_turn_deg)]
+            # facing a bare wall ends up looking at the mapped room again. The last grid, with
+            # the pose tf still gives, tells the ground robot which way there is room to drive.
+            return relocalise(self.robot, _free_distance(grid, pose), self.relocalise_config,
+                              self.initial_config)
         if grid is None or pose is None:
             return initial_scan(self.initial_config)  # nothing to aim at yet
         x, y, yaw = pose
@@ -188,19 +200,24 @@ class ConductorNode:
             distances = [(b, grid.free_distance(x, y, yaw + math.radians(b)))
                          for b in self.wall_bearings_deg]
             return wall_scan(distances, self.wall_config)
-        return random_scan(self.rng, lambda b: grid.free_distance(x, y, yaw + math.radians(b)),
-                           self.wall_config)
+        return random_scan(self.rng, _free_distance(grid, pose), self.wall_config)
 
     def _start_scan(self, name, pose):
         self._stop_scan()
-        steps = self._scan_steps(name, pose)
-        rospy.loginfo("conductor: %s scan, %d steps", name, len(steps))
+        if name == "resume" and self.paused_scan is not None:
+            runner, self.paused_scan = self.paused_scan, None
+            rospy.loginfo("conductor: the stopped scan goes on")
+        else:
+            if name != "relocalise":
+                self.paused_scan = None  # a new phase scan replaces the stopped one
+            steps = self._scan_steps(name, pose)
+            rospy.loginfo("conductor: %s scan, %d steps", name, len(steps))
+            runner = ScanRunner(steps, self.runner_config, while_lost=name == "relocalise")
         self.scan_stop.clear()
-        self.scan_thread = threading.Thread(target=self._run_scan,
-                                            args=(steps, name == "relocalise"), daemon=True)
+        self.scan_thread = threading.Thread(target=self._run_scan, args=(runner,), daemon=True)
         self.scan_thread.start()
 
-    def _run_scan(self, steps, while_lost=False):
+    def _run_scan(self, runner):
         if self.tello is not None and not self.took_off:
             self.took_off, why = take_off(self.tello.send)
             if not self.took_off:
@@ -208,19 +225,23 @@ class ConductorNode:
                 with self.lock:
                     self.obs.scan_failed = True
                 return
-        runner = ScanRunner(steps, self.runner_config, while_lost)
         while not self.scan_stop.is_set() and not rospy.is_shutdown():
             item = runner.next_step()
             if item is None:
                 break
             step, speed = item
             done = self.executor.execute(step, speed, should_stop=self.scan_stop.is_set)
+            if self.scan_stop.is_set():
+                runner.interrupt()
+                break
             rospy.sleep(0.5)  # the bridge's state catches up with the last motion
             with self.lock:
                 lost = self.obs.tracking_lost
             runner.report_motion(done, lost)
         with self.lock:
             self.obs.scan_failed = runner.failed
+            if self.scan_stop.is_set() and not runner.while_lost and not runner.done:
+                self.paused_scan = runner
 
     def _stop_scan(self):
         if self.scan_thread is not None and self.scan_thread.is_alive():

@@ -87,6 +87,7 @@ def main(argv=None):
     parser.add_argument("--sim-time-limit-s", type=float, default=600.0)
     parser.add_argument("--rate-factor", type=float, default=4.0)
     parser.add_argument("--no-stress", action="store_true", help="skip the stressed runs")
+    parser.add_argument("--stress-only", action="store_true", help="skip the plain runs")
     parser.add_argument("--out", default=os.path.join(HERE, "results", "mission.json"))
     args = parser.parse_args(argv)
     if shutil.which("roslaunch") is None:
@@ -96,7 +97,8 @@ def main(argv=None):
     failed_logs = os.path.splitext(args.out)[0] + "_failed_logs"
     table = {}
     try:
-        for stress in ([False] if args.no_stress else [False, True]):
+        for stress in [s for s in (False, True) if not (s and args.no_stress)
+                       and not (not s and args.stress_only)]:
             for robot in args.robots.split(","):
                 runs = []
                 for seed in range(args.first_seed, args.first_seed + args.worlds):

@@ -26,17 +26,17 @@ sys.path.insert(0, os.path.join(HERE, "..", "src"))
 
 from sparse_nav.exit_finder import find_exit  # noqa: E402
 from sparse_nav.scanning import (GROUND_SPEED_M_S, GROUND_TURN_RATE_RAD_S,  # noqa: E402
-                                 initial_scan, to_velocity_segments)
+                                 InitialScanConfig, initial_scan, to_velocity_segments)
 from sparse_nav.sim import SimConfig, load_world  # noqa: E402
 from sparse_nav.sim.simulator import Simulator  # noqa: E402
 
 PAUSE_S = 0.5   # the conductor's pause after each step
 
 
-def scan_once(world_name, seed, hit_m, speed_m_s, turn_rate_rad_s):
+def scan_once(world_name, seed, hit_m, speed_m_s, turn_rate_rad_s, turn_deg):
     world = load_world(world_name)
     sim = Simulator(world, SimConfig(robot="ground", seed=seed))
-    for step in initial_scan():
+    for step in initial_scan(InitialScanConfig(turn_deg=turn_deg)):
         for v, w, duration in to_velocity_segments([step], speed_m_s=speed_m_s,
                                                     turn_rate_rad_s=turn_rate_rad_s):
             sim.set_cmd_vel(v, w)
@@ -75,18 +75,21 @@ def main():
                         help="driving speed (m/s; default %(default)s, the conductor's)")
     parser.add_argument("--turn-rate-rad-s", type=float, default=GROUND_TURN_RATE_RAD_S,
                         help="turn rate on the spot (rad/s; default %(default)s, the conductor's)")
+    parser.add_argument("--turn-deg", type=float, default=InitialScanConfig().turn_deg,
+                        help="turn per iteration of the scan (deg; default %(default)s)")
     parser.add_argument("--json", default=os.path.join(HERE, "results", "ground_scan.json"),
                         help="where the rows and the summary go (default: %(default)s)")
     args = parser.parse_args()
     rows = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         start = time.time()
-        row = scan_once(args.world, seed, args.hit_m, args.speed_m_s, args.turn_rate_rad_s)
+        row = scan_once(args.world, seed, args.hit_m, args.speed_m_s, args.turn_rate_rad_s,
+                        args.turn_deg)
         row["wall_s"] = round(time.time() - start, 1)
         rows.append(row)
         print(json.dumps(row), flush=True)
     hits = sum(r["hit"] for r in rows)
-    summary = {"world": args.world, "seeds": args.seeds, "hits": hits,
+    summary = {"world": args.world, "seeds": args.seeds, "turn_deg": args.turn_deg, "hits": hits,
                "hit_rate": hits / max(len(rows), 1), "hit_m": args.hit_m,
                "median_best_error_m": float(np.median([r["best_error_m"] if r["best_error_m"]
                                                        is not None else np.inf for r in rows])),

@@ -101,6 +101,7 @@ def test_a_new_slam_map_during_the_initial_scan_scans_again_a_merge_back_does_no
     m = Mission(ConductorConfig(wall_scan_enabled=False, max_scan_rounds=2, map_settle_s=5.0))
     m.tick(start_requested=True, slam_map_index=0)
     m.tick(scan_running=True)
+    m.tick(dt=20.0)
     m.tick(slam_map_index=1)  # lost, then a new map: it holds only the rest of the scan
     # Judged only once the new map has had map_settle_s to merge back.
     assert m.tick(scan_running=False, map_ready=True) == []
@@ -109,6 +110,7 @@ def test_a_new_slam_map_during_the_initial_scan_scans_again_a_merge_back_does_no
     assert m.conductor.phase == Phase.INITIAL_SCAN and "SLAM map changed" in m.conductor.reason
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
     m.tick(scan_running=True)
+    m.tick(dt=20.0)
     m.tick(slam_map_index=2)  # again, but no rounds are left: the map at hand is used
     m.tick(dt=6.0)
     assert kinds(m.tick(scan_running=False, map_ready=True)) == [ActionKind.FIND_EXIT]
@@ -587,7 +589,7 @@ def test_a_scan_stopped_for_relocalising_goes_on_where_it_was_cut():
     assert "the scan ended while SLAM tracking was lost: scan again (2/3)" in m2.conductor.reason
 
 
-def test_a_resumed_scan_in_a_new_map_that_never_merged_is_judged_by_where_it_began():
+def test_a_resumed_scan_in_a_new_map_that_never_merged_is_judged_by_what_the_map_tracked():
     m = Mission()
     m.tick(start_requested=True)
     m.tick(scan_running=True, slam_map_index=0)
@@ -598,9 +600,38 @@ def test_a_resumed_scan_in_a_new_map_that_never_merged_is_judged_by_where_it_beg
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "resume")]
     m.tick(scan_running=True, scan_resumable=False)
     actions = m.tick(dt=6.0, scan_running=False, map_ready=True)
-    # Map 1 holds only what was scanned since the loss: the whole room is scanned again.
+    # Map 1 tracked 1 of the scan's 2 s: half, enough. The same scan with 10 s more in map 0
+    # before the loss leaves map 1 too little of the room: it is scanned again.
+    assert kinds(actions) == [ActionKind.FIND_EXIT]
+    m = Mission()
+    m.tick(start_requested=True)
+    m.tick(scan_running=True, slam_map_index=0)
+    m.tick(dt=10.0)
+    m.tick(tracking_lost=True)
+    m.tick(dt=16.0)
+    m.tick(tracking_lost=False, slam_map_index=1)
+    m.tick(scan_running=False, scan_resumable=True)
+    m.tick(scan_running=True, scan_resumable=False)
+    actions = m.tick(dt=6.0, scan_running=False, map_ready=True)
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
     assert "the SLAM map changed during the scan: scan again (2/3)" in m.conductor.reason
+
+
+def test_the_map_a_scan_ends_in_counts_the_time_of_the_maps_merged_into_it():
+    m = Mission(ConductorConfig(map_settle_s=5.0))
+    m.tick(start_requested=True, slam_map_index=0)
+    m.tick(scan_running=True)
+    m.tick(dt=20.0)                                  # 20 s in map 0, lost
+    m.tick(dt=1.0, tracking_lost=True)
+    m.tick(dt=5.0, tracking_lost=False, slam_map_index=1)
+    m.tick(dt=15.0)                                  # 20 s in map 1, lost
+    m.tick(dt=1.0, tracking_lost=True)
+    m.tick(dt=5.0, tracking_lost=False, slam_map_index=2)
+    m.tick(dt=5.0)                                   # 10 s in map 2, which merges into map 1
+    m.tick(dt=10.0, slam_map_index=1, slam_merges=((2, 1),))
+    # Map 1: 40 of 60 s; map 0, never merged, holds only the scan's first third.
+    actions = m.tick(dt=6.0, scan_running=False, map_ready=True)
+    assert kinds(actions) == [ActionKind.FIND_EXIT], m.conductor.history
 
 
 def test_a_scan_that_ran_all_its_steps_while_lost_is_judged_as_any_ended_scan():
@@ -609,6 +640,7 @@ def test_a_scan_that_ran_all_its_steps_while_lost_is_judged_as_any_ended_scan():
         m = Mission()
         m.tick(start_requested=True)
         m.tick(scan_running=True, slam_map_index=0)
+        m.tick(dt=10.0)
         m.tick(tracking_lost=True)
         assert [(a.kind, a.payload) for a in m.tick(scan_running=False)] == [
             (ActionKind.SCAN, "relocalise")]

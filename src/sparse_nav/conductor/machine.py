@@ -13,7 +13,7 @@ mean another room of the building (a partition's door), whose exit is found in t
 import dataclasses
 import enum
 import math
-from typing import List, Optional, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -101,6 +101,9 @@ class ConductorConfig:
 
     wall_scan_enabled: bool = False      # 000 step 2 (off: in the sim its approaches cost losses)
     max_scan_rounds: int = 3             # initial scans without a map before giving up
+    scan_map_min_share: float = 0.5      # a scan's SLAM map at its end must have tracked this
+                                         # share of its time (merges count): else a new map
+                                         # holds too little of the room, and it is scanned again
     max_scan_resumes: int = 15           # a phase scan cut by losses goes on where it was cut
                                          # this often; then the phase's rules judge it as cut
     max_exit_attempts: int = 3           # exit finder answers without an exit before giving up
@@ -159,6 +162,9 @@ class ConductorConfig:
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
         if not 0 <= self.exit_check_near_m < self.exit_check_far_m < math.inf:
             raise ValueError("need 0 <= exit_check_near_m < exit_check_far_m (finite)")
+        if not 0 <= self.scan_map_min_share <= 1:
+            raise ValueError(f"scan_map_min_share must be in [0, 1], got "
+                             f"{self.scan_map_min_share}")
         if not 0 <= self.exit_min_free_share <= 1:
             raise ValueError(f"exit_min_free_share must be in [0, 1], got "
                              f"{self.exit_min_free_share}")
@@ -245,7 +251,9 @@ class Conductor:
         self._scan_cut = False  # the running phase scan ended while tracking was lost
         self._scan_kind = None
         self._scan_resumes = 0  # of the present phase scan
-        self._scan_map_index = None  # the SLAM map when the running scan began
+        # Sim-seconds the running phase scan tracked in each SLAM map (merges added up).
+        self._scan_tracked_s: Dict[Optional[int], float] = {}
+        self._last_time_s = None
         self._map_index_seen = None
         self._merges_applied = 0  # how many of Observation.slam_merges are applied
         self._map_changed_s = None  # when the SLAM map index last changed
@@ -259,6 +267,7 @@ class Conductor:
         """The SCAN action; _start_state waits for it to begin, then to end."""
         if name not in ("relocalise", "resume"):
             self._scan_resumes = 0
+            self._scan_tracked_s = {}
         self._scan_kind = name
         self._scan_started = False
         return Action(ActionKind.SCAN, name)
@@ -289,6 +298,11 @@ class Conductor:
             return self._navigate(t, Phase.RETURN_TO_START, self.start_xy, "return to start requested")
 
         self._follow_merges(obs)
+        dt = 0.0 if self._last_time_s is None else max(0.0, t - self._last_time_s)
+        self._last_time_s = t
+        if self.state == State.START and obs.scan_running and not obs.tracking_lost:
+            key = obs.slam_map_index
+            self._scan_tracked_s[key] = self._scan_tracked_s.get(key, 0.0) + dt
         if obs.slam_map_index != self._map_index_seen:
             if self._map_index_seen is not None:
                 self._map_changed_s = t
@@ -460,8 +474,9 @@ class Conductor:
         for old, new in obs.slam_merges[self._merges_applied:]:
             if self._alternatives_map == old:
                 self._alternatives_map = new
-            if self._scan_map_index == old:
-                self._scan_map_index = new
+            if old in self._scan_tracked_s:
+                self._scan_tracked_s[new] = (self._scan_tracked_s.get(new, 0.0)
+                                             + self._scan_tracked_s.pop(old))
             self._rejected = [(new if m == old else m, xy) for m, xy in self._rejected]
         self._merges_applied = len(obs.slam_merges)
 
@@ -521,8 +536,6 @@ class Conductor:
     def _start_state(self, t, obs):
         cfg = self.config
         if obs.scan_running:
-            if not self._scan_started and self._scan_kind != "resume":
-                self._scan_map_index = obs.slam_map_index
             self._scan_started = True
             return []
         if not self._scan_started:
@@ -549,7 +562,9 @@ class Conductor:
             # room scanned since: scan the whole room again in it while rounds are left; so does
             # a scan cut short by a loss.
             rounds_left = self._scan_rounds < cfg.max_scan_rounds
-            map_changed = obs.slam_map_index != self._scan_map_index and rounds_left
+            tracked = sum(self._scan_tracked_s.values())
+            share = self._scan_tracked_s.get(obs.slam_map_index, 0.0) / tracked if tracked else 1.0
+            map_changed = share < cfg.scan_map_min_share and rounds_left
             cut = cut and rounds_left
             if obs.map_ready and not obs.scan_failed and not map_changed and not cut:
                 if cfg.wall_scan_enabled:

@@ -22,7 +22,8 @@ from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
 from sparse_nav.ros.robot_io import StepExecutor, TelloClient
-from sparse_nav.scanning import (GROUND_SPEED_M_S, GROUND_TURN_RATE_RAD_S, InitialScanConfig,
+from sparse_nav.scanning import (GROUND_INITIAL_SCAN_TURN_DEG, GROUND_SPEED_M_S,
+                                 GROUND_TURN_RATE_RAD_S, InitialScanConfig,
                                  RelocaliseConfig, Step, WallScanConfig, circular_scan,
                                  initial_scan, random_scan, relocalise, wall_scan)
 from sparse_nav.srv import FindExit
@@ -87,6 +88,10 @@ class ConductorNode:
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
         tello = TelloClient() if self.robot == "drone" else None
         self.tello = tello
+        if self.robot == "ground":
+            self.initial_config = dataclasses.replace(self.initial_config, turn_deg=float(
+                rospy.get_param("~ground_initial_scan_turn_deg", GROUND_INITIAL_SCAN_TURN_DEG)))
+            self.initial_config.validate()
         ground_speed = float(rospy.get_param("~ground_scan_speed_m_s", GROUND_SPEED_M_S))
         ground_turn_rate = float(rospy.get_param("~ground_scan_turn_rate_rad_s",
                                                  GROUND_TURN_RATE_RAD_S))

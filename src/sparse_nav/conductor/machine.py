@@ -147,8 +147,8 @@ class ConductorConfig:
     walls_around_range_m: float = 8.0    # ... walls this close count (the node's grid query)
 
     def validate(self):
-        for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts", "max_goal_failures",
-                     "max_goal_losses", "max_rooms", "max_rescans"):
+        for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts",
+                     "max_goal_failures", "max_goal_losses", "max_rooms", "max_rescans"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
@@ -542,8 +542,8 @@ class Conductor:
             return []  # the scan was asked for and has not begun yet
         if self._scan_cut and obs.scan_resumable and self._scan_resumes < cfg.max_scan_resumes:
             # Restarted after every loss, a scan longer than the time between losses (the
-            # ground robot's initial scan takes about 290 s) would never end. What SLAM mapped
-            # before the loss is in the map again once the new map merges back.
+            # ground robot's initial scan takes 150 s) would never end. What SLAM mapped before
+            # the loss is in the map again once the new map merges back.
             self._scan_cut = False
             self._scan_resumes += 1
             self._set(t, State.START, self.phase, f"SLAM tracking back: the scan goes on where "
@@ -553,14 +553,14 @@ class Conductor:
             return []  # judged once the new SLAM map has merged back or grown a grid
         self._scan_started = False
         # Cut short: steps never run. A scan that ran all its steps, the last while lost, is
-        # judged as any scan that ended (a new SLAM map since it began by the map rule).
+        # judged as any scan that ended (a new SLAM map by scan_map_min_share).
         cut, self._scan_cut = self._scan_cut and obs.scan_resumable, False
         if self.phase == Phase.LOOK_AROUND:
             return self._looked_around(t, obs)
         if self.phase == Phase.INITIAL_SCAN:
-            # A loss that ended in a new SLAM map leaves a map (and a grid) of the part of the
-            # room scanned since: scan the whole room again in it while rounds are left; so does
-            # a scan cut short by a loss.
+            # A loss that ended in a new SLAM map that did not merge back leaves a map (and a
+            # grid) of the part of the room scanned since: when that part is small, scan the
+            # whole room again in it while rounds are left; so does a scan cut short by a loss.
             rounds_left = self._scan_rounds < cfg.max_scan_rounds
             tracked = sum(self._scan_tracked_s.values())
             share = self._scan_tracked_s.get(obs.slam_map_index, 0.0) / tracked if tracked else 1.0

@@ -213,6 +213,9 @@ class ConductorNode:
             runner, self.paused_scan = self.paused_scan, None
             rospy.loginfo("conductor: the stopped scan goes on")
         else:
+            if name == "resume":  # the conductor asks only while obs.scan_resumable
+                rospy.logwarn("conductor: no stopped scan to go on with: a random scan instead")
+                name = "random"
             if name != "relocalise":
                 self.paused_scan = None  # a new phase scan replaces the stopped one
             steps = self._scan_steps(name, pose)

@@ -123,3 +123,9 @@ def test_the_widest_opening_leaves_out_the_one_toward_a_given_bearing():
     assert widest_opening_deg([False, True, True, False, False]) == 216.0
     assert widest_opening_deg([False] * 8) == 360.0
     assert widest_opening_deg([]) == 360.0
+
+
+def test_free_distance_can_take_the_map_edge_for_unknown(room):
+    assert room.free_distance(10.0, 10.0, 0.0, off_map_free=True, max_m=2.0) == pytest.approx(2.0)
+    # Walls still end it.
+    assert room.free_distance(0.0, 0.0, 0.0, off_map_free=True) == pytest.approx(2.9, abs=0.06)

@@ -24,15 +24,16 @@ class GridView:
             return int(self.cells[row, col])
         return None  # off the map
 
-    def free_distance(self, x, y, heading_rad, max_m=10.0, occupied_at=50):
+    def free_distance(self, x, y, heading_rad, max_m=10.0, occupied_at=50, off_map_free=False):
         """Metres from (x, y) along heading to the first occupied or off-map cell (unknown cells
-        count as free: the seed drives until it meets the wall), capped at max_m."""
+        count as free: the seed drives until it meets the wall), capped at max_m. off_map_free:
+        off-map cells count as unknown, not as the end (a SLAM map seconds old has a small grid)."""
         step = self.resolution_m / 2.0
         d = 0.0
         c, s = math.cos(heading_rad), math.sin(heading_rad)
         while d < max_m:
             value = self.cell(x + d * c, y + d * s)
-            if value is None or value >= occupied_at:
+            if (value is None and not off_map_free) or (value is not None and value >= occupied_at):
                 return d
             d += step
         return max_m

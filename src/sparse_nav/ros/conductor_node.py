@@ -41,12 +41,13 @@ def _dataclass_params(prefix, cls):
     return config
 
 
-def _free_distance(grid, pose):
+def _free_distance(grid, pose, off_map_free=False):
     """free_distance(bearing_deg) -> metres free on the grid from pose; None without both."""
     if grid is None or pose is None:
         return None
     x, y, yaw = pose
-    return lambda bearing_deg: grid.free_distance(x, y, yaw + math.radians(bearing_deg))
+    return lambda bearing_deg: grid.free_distance(x, y, yaw + math.radians(bearing_deg),
+                                                  off_map_free=off_map_free)
 
 
 class ConductorNode:
@@ -195,9 +196,11 @@ class ConductorNode:
         if name == "relocalise":
             # 004's LOST: look and move around. Each try also turns, so that a robot stuck
             # facing a bare wall ends up looking at the mapped room again. The last grid, with
-            # the pose tf still gives, tells the ground robot which way there is room to drive.
-            return relocalise(self.robot, _free_distance(grid, pose), self.relocalise_config,
-                              self.initial_config)
+            # the pose tf still gives, tells the ground robot which way there is room to drive;
+            # past its edge is unknown, not a wall: the grid of a SLAM map seconds old is small,
+            # and its edge would cut every drive to min_baseline_m, too short for a new map.
+            return relocalise(self.robot, _free_distance(grid, pose, off_map_free=True),
+                              self.relocalise_config, self.initial_config)
         if grid is None or pose is None:
             return initial_scan(self.initial_config)  # nothing to aim at yet
         x, y, yaw = pose

@@ -80,7 +80,7 @@ class RelocaliseConfig:
     """Sizes of the motion that starts a new SLAM map after a loss; defaults written once here."""
 
     baseline_m: float = 0.6    # ground robot: straight drive out and back (m)
-    min_baseline_m: float = 0.2  # shorter room than this: drive into the other direction anyway
+    min_baseline_m: float = 0.2  # drive at least this far, even where the map shows less room
     standoff_m: float = 0.4    # keep this far from the wall ahead on the map (m)
     turn_deg: float = 60.0     # turn after each try, so the next sees other features
 
@@ -94,7 +94,7 @@ class RelocaliseConfig:
 def relocalise(robot, free_distance=None, config=None, sway_config=None):
     """One try of the motion that lets monocular SLAM start a new map after a loss, then a turn.
 
-    A new map needs a baseline of about a tenth of the depth of the features the camera sees,
+    A new map needs a baseline of about 8 % of the depth of the features the camera sees,
     with those features in view all along. The drone gets it from the sway, whose moves are
     sideways. The ground robot cannot move sideways, and its sway turns 90 deg to face each side
     (the initialiser's reference frame is lost with the view), so that its straight legs are

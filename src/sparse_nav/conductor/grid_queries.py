@@ -33,7 +33,9 @@ class GridView:
         c, s = math.cos(heading_rad), math.sin(heading_rad)
         while d < max_m:
             value = self.cell(x + d * c, y + d * s)
-            if (value is None and not off_map_free) or (value is not None and value >= occupied_at):
+            if value is None and off_map_free:
+                value = -1  # unknown
+            if value is None or value >= occupied_at:
                 return d
             d += step
         return max_m

@@ -203,12 +203,10 @@ class ConductorNode:
                               self.relocalise_config, self.initial_config)
         if grid is None or pose is None:
             return initial_scan(self.initial_config)  # nothing to aim at yet
-        x, y, yaw = pose
+        room = _free_distance(grid, pose)
         if name == "wall":
-            distances = [(b, grid.free_distance(x, y, yaw + math.radians(b)))
-                         for b in self.wall_bearings_deg]
-            return wall_scan(distances, self.wall_config)
-        return random_scan(self.rng, _free_distance(grid, pose), self.wall_config)
+            return wall_scan([(b, room(b)) for b in self.wall_bearings_deg], self.wall_config)
+        return random_scan(self.rng, room, self.wall_config)
 
     def _start_scan(self, name, pose):
         self._stop_scan()

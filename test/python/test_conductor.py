@@ -1049,6 +1049,21 @@ def test_tracking_back_in_a_new_slam_map_relocalises_until_it_merges_back():
     assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
 
 
+def test_a_loss_while_waiting_for_a_merge_counts_its_lost_time_from_itself():
+    m = on_the_way_to_the_exit(ConductorConfig(wall_scan_enabled=False, merge_wait_s=200.0,
+                                               lost_timeout_s=60.0))
+    m.tick(tracking_lost=False, slam_map_index=1, robot_xy=(0.1, 0.0))
+    m.tick(dt=50.0)
+    # Lost again 61 s after the first loss, having tracked in map 1 for 51 s: not given up.
+    m.tick(dt=10.0, tracking_lost=True, scan_running=False)
+    assert m.conductor.state == State.LOST and m.conductor.phase == Phase.GO_TO_EXIT
+    m.tick(dt=59.0, scan_running=True)
+    assert m.conductor.state == State.LOST
+    m.tick(dt=2.0)
+    assert m.conductor.phase == Phase.GAVE_UP
+    assert "SLAM tracking lost for more than 60 s" in m.conductor.reason
+
+
 def test_an_exit_found_in_a_map_that_merged_on_is_resumed_in_the_map_it_merged_into():
     m = Mission(ConductorConfig(wall_scan_enabled=False, merge_wait_s=20.0))
     m.obs.slam_map_index = 6

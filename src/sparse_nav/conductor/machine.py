@@ -227,6 +227,7 @@ class Conductor:
         self._alternatives: List[Tuple[float, float]] = []
         self._alternatives_map = None  # the SLAM map they (and exit_xy) were found in
         self._merge_wait_since_s = None  # tracking back in another map than the exit's, since
+        self._tracked_while_lost = False  # tracking was back (in another map) since the loss began
         self._rescans = 0
         self._door_xy = None  # the exit come through, in the map the robot looks around in
         self._room_unconfirmed = False  # walls all round, no exit of theirs found yet
@@ -386,6 +387,11 @@ class Conductor:
         """LOST and RECOVER take over from any state; None when neither applies."""
         cfg = self.config
         if obs.tracking_lost:
+            if self.state == State.LOST and self._tracked_while_lost:
+                # Lost again while waiting for a merge: the time lost counts from this loss, not
+                # from the first (forced losses every 30 s would add up to lost_timeout_s).
+                self._lost_since_s = t
+            self._tracked_while_lost = False
             if self.state != State.LOST:
                 if self.state != State.RECOVER:  # RECOVER resumes the state it interrupted
                     self._resume_state = self.state
@@ -493,6 +499,7 @@ class Conductor:
         merge_wait_s; then go on in the new map: through the exit already, look around there;
         else scan the room again and find the exit in it."""
         cfg = self.config
+        self._tracked_while_lost = True
         if self._merge_wait_since_s is None:
             self._merge_wait_since_s = t
             self._set(t, State.LOST, self.phase, f"SLAM tracking back in map "

@@ -43,8 +43,8 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
     env = dict(os.environ, ROS_HOME=ros_home)
     start = time.monotonic()
     try:
-        subprocess.run(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
-                       timeout=limit_s / max(rate_factor, 0.5) * 3 + 300)
+        proc = subprocess.run(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                              env=env, timeout=limit_s / max(rate_factor, 0.5) * 3 + 300)
     except subprocess.TimeoutExpired:
         return {"world": world, "robot": robot, "error": "wall-time limit"}
     wall_s = time.monotonic() - start
@@ -54,8 +54,11 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
     except (OSError, ValueError) as exc:
         logs, latest = os.path.join(failed_logs_dir, name), os.path.join(ros_home, "log", "latest")
         shutil.rmtree(logs, ignore_errors=True)
-        if os.path.isdir(latest):
-            shutil.copytree(latest, logs, ignore_dangling_symlinks=True)
+        if not os.path.isdir(latest):
+            # roslaunch stopped before any node ran (a package not found, say): its own words.
+            return {"world": world, "robot": robot, "error": f"no report: {exc}",
+                    "roslaunch_stderr": proc.stderr.strip()[-400:]}
+        shutil.copytree(latest, logs, ignore_dangling_symlinks=True)
         return {"world": world, "robot": robot, "error": f"no report: {exc}", "logs": logs}
     finally:
         shutil.rmtree(out, ignore_errors=True)

@@ -347,7 +347,7 @@ def test_a_false_exit_without_alternatives_asks_again_and_never_takes_it_twice()
                                                    [ActionKind.CANCEL_GOAL, ActionKind.STOP])
 
 
-def test_an_exit_rejected_in_one_slam_map_is_not_skipped_in_another():
+def test_an_exit_rejected_in_one_slam_map_is_skipped_in_the_next():
     m = Mission(ConductorConfig(wall_scan_enabled=False))
     m.obs.slam_map_index = 0
     m.tick(start_requested=True)
@@ -356,10 +356,10 @@ def test_an_exit_rejected_in_one_slam_map_is_not_skipped_in_another():
     m.tick(robot_xy=(2.0, 0.0), navigator_state="reached")
     m.tick(navigator_state="following")
     assert kinds(m.tick(robot_xy=(3.5, 0.0), navigator_state="reached")) == [ActionKind.FIND_EXIT]
-    # A new SLAM map: its coordinates say nothing about the old one's, so (2.0, 0.0) is a fresh
-    # candidate there.
-    actions = m.tick(exit_answered=True, exit_xy=(2.0, 0.0), slam_map_index=1)
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (2.0, 0.0))]
+    # A new SLAM map, anchored where the robot was last tracked: (2.1, 0.1) is the same door.
+    actions = m.tick(exit_answered=True, exit_xy=(2.1, 0.1), exit_alternatives=((0.0, 3.0),),
+                     slam_map_index=1)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (0.0, 3.0))]
 
 
 def test_passing_through_near_the_outline_or_without_one_is_past_the_exit():
@@ -1112,10 +1112,10 @@ def test_no_merge_back_past_the_exit_looks_around_in_the_new_map():
     assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.SCAN, "look_around")
     assert (m.conductor.state, m.conductor.phase) == (State.START, Phase.LOOK_AROUND)
     m.tick(scan_running=True)
-    # Walls all round: another room; the door's place in map 7 is unknown, so nothing is
-    # rejected and no opening is left out.
+    # Walls all round: another room; the door come through, where the bridge anchored map 7,
+    # is out of the running there.
     m.tick(scan_running=False, walls_around=WALLS_ROOM)
-    assert m.conductor.phase == Phase.FIND_EXIT and m.conductor._rejected == []
+    assert m.conductor.phase == Phase.FIND_EXIT and m.conductor._rejected == [(5.0, 0.0)]
 
 
 def test_an_interrupted_step_is_done_again_when_the_scan_goes_on():

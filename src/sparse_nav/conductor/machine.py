@@ -229,10 +229,11 @@ class Conductor:
         self._merge_wait_since_s = None  # tracking back in another map than the exit's, since
         self._tracked_while_lost = False  # tracking was back (in another map) since the loss began
         self._rescans = 0
-        self._door_xy = None  # the exit come through, in the map the robot looks around in
+        self._door_xy = None  # the exit come through, where the robot looks around
         self._room_unconfirmed = False  # walls all round, no exit of theirs found yet
-        # Exits passed through without leaving the room, with the SLAM map they were drawn in.
-        self._rejected: List[Tuple[Optional[int], Tuple[float, float]]] = []
+        # Exits passed through without leaving the room. They hold in every SLAM map: slam_bridge
+        # anchors a new map where the robot was last tracked, and such a door is near it.
+        self._rejected: List[Tuple[float, float]] = []
         self.goal_xy: Optional[Tuple[float, float]] = None
         self._resume_state = State.IDLE
         self._scan_rounds = 0
@@ -483,7 +484,6 @@ class Conductor:
             if old in self._scan_tracked_s:
                 self._scan_tracked_s[new] = (self._scan_tracked_s.get(new, 0.0)
                                              + self._scan_tracked_s.pop(old))
-            self._rejected = [(new if m == old else m, xy) for m, xy in self._rejected]
         self._merges_applied = len(obs.slam_merges)
 
     def _goal_in_another_map(self, obs):
@@ -511,9 +511,8 @@ class Conductor:
         stop = [Action(ActionKind.STOP)] if obs.scan_running else []
         why = f"no merge back into the exit's SLAM map within {cfg.merge_wait_s:g} s"
         if self.phase == Phase.PASS_THROUGH:
-            # The door's place in the new map is unknown.
             return stop + self._look_around(t, f"{why}, past the exit: look around in the new "
-                                               f"map", door_xy=None)
+                                               f"map", door_xy=self.exit_xy)
         if self._rescans >= cfg.max_rescans:
             return stop + self._give_up(t, f"{why}, after {self._rescans} scans in new maps")
         self._rescans += 1
@@ -612,8 +611,8 @@ class Conductor:
         return widest_opening_deg(walls, skip)
 
     def _look_around(self, t, why, door_xy):
-        """Beyond the exit: look around there, door_xy the door come through (None where its
-        place in the present map is unknown); done at once with max_rooms 1."""
+        """Beyond the exit: look around there, door_xy the door come through; done at once
+        with max_rooms 1."""
         if self.config.max_rooms == 1:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
@@ -639,7 +638,7 @@ class Conductor:
             return self._give_up(t, f"walls all round beyond the exit (openings up to "
                                     f"{opening:.0f} deg wide) after {self.rooms} rooms")
         if self._door_xy is not None:
-            self._rejected.append((obs.slam_map_index, self._door_xy))
+            self._rejected.append(self._door_xy)
         self.rooms += 1
         self._room_unconfirmed = True
         self._outside_by = 0.0
@@ -668,7 +667,7 @@ class Conductor:
         candidates = []
         if answered and exit_xy is not None:
             candidates = [c for c in [tuple(exit_xy)] + [tuple(xy) for xy in alternatives]
-                          if not self._was_rejected(c, obs.slam_map_index)]
+                          if not self._was_rejected(c)]
         if answered and self._room_unconfirmed:
             if not candidates:
                 why = "the walls around hold no exit but the door come through"
@@ -685,7 +684,7 @@ class Conductor:
             # The room before's untried candidates come last (a door into a room with no exit).
             if self._alternatives_map == obs.slam_map_index:
                 candidates += [c for c in self._alternatives if c not in candidates
-                               and not self._was_rejected(c, obs.slam_map_index)]
+                               and not self._was_rejected(c)]
         if candidates:
             self._alternatives_map = obs.slam_map_index
             self.exit_xy = candidates[0]
@@ -738,9 +737,9 @@ class Conductor:
                 return self._navigate(t, Phase.PASS_THROUGH, target, "at the exit: pass through")
             inside = distance_inside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.PASS_THROUGH and inside >= cfg.inside_room_margin_m:
-                return self._wrong_exit(
-                    t, obs.slam_map_index, f"passed through ({self.exit_xy[0]:.2f}, "
-                    f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the room outline: not an exit")
+                return self._wrong_exit(t, f"passed through ({self.exit_xy[0]:.2f}, "
+                                           f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the "
+                                           "room outline: not an exit")
             if self.phase == Phase.PASS_THROUGH:
                 return self._look_around(t, "passed through the exit: look around", self.exit_xy)
             self._set(t, State.IDLE, Phase.DONE, "back at the start")
@@ -771,15 +770,14 @@ class Conductor:
             self._failure_since_s = None
         return []
 
-    def _was_rejected(self, xy, map_index):
-        """Near an exit rejected in the same SLAM map (another map's coordinates say nothing)."""
-        return any(m == map_index and math.dist(xy, r) < self.config.rejected_exit_radius_m
-                   for m, r in self._rejected)
+    def _was_rejected(self, xy):
+        """Near an exit passed through without leaving the room."""
+        return any(math.dist(xy, r) < self.config.rejected_exit_radius_m for r in self._rejected)
 
-    def _wrong_exit(self, t, map_index, why):
+    def _wrong_exit(self, t, why):
         """The exit led nowhere: it and candidates near it are out of the running."""
-        self._rejected.append((map_index, self.exit_xy))
-        self._alternatives = [c for c in self._alternatives if not self._was_rejected(c, map_index)]
+        self._rejected.append(self.exit_xy)
+        self._alternatives = [c for c in self._alternatives if not self._was_rejected(c)]
         return self._next_exit(t, why, f"{why}, and no candidate is left")
 
     def _next_exit(self, t, why, given_up, scan_first=False):

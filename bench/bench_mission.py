@@ -29,7 +29,7 @@ def free_port():
 
 def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir):
     """One mission; returns the report (or an error entry) with the run's wall time. A run that
-    leaves no report keeps its ROS logs in failed_logs_dir, for the reason."""
+    fails keeps its ROS logs, its report and summary.png in failed_logs_dir, for the reason."""
     name = f"{world.replace(':', '_')}_{robot}_{'stress' if stress else 'plain'}"
     out = os.path.join(tmp, name)
     args = ["roslaunch", "-p", str(free_port()), "sparse_nav", "demo.launch", f"world:={world}",
@@ -48,20 +48,23 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
     except subprocess.TimeoutExpired:
         return {"world": world, "robot": robot, "error": "wall-time limit"}
     wall_s = time.monotonic() - start
+    report, error = None, None
     try:
         with open(os.path.join(out, "report.json")) as f:
             report = json.load(f)
     except (OSError, ValueError) as exc:
-        logs, latest = os.path.join(failed_logs_dir, name), os.path.join(ros_home, "log", "latest")
-        shutil.rmtree(logs, ignore_errors=True)
-        if not os.path.isdir(latest):
+        error = f"no report: {exc}"
+    logs = None
+    if report is None or not report.get("success"):
+        logs = _keep_logs(out, os.path.join(ros_home, "log", "latest"),
+                          os.path.join(failed_logs_dir, name))
+    shutil.rmtree(out, ignore_errors=True)
+    if report is None:
+        if logs is None:
             # roslaunch stopped before any node ran (a package not found, say): its own words.
-            return {"world": world, "robot": robot, "error": f"no report: {exc}",
+            return {"world": world, "robot": robot, "error": error,
                     "roslaunch_stderr": proc.stderr.strip()[-400:]}
-        shutil.copytree(latest, logs, ignore_dangling_symlinks=True)
-        return {"world": world, "robot": robot, "error": f"no report: {exc}", "logs": logs}
-    finally:
-        shutil.rmtree(out, ignore_errors=True)
+        return {"world": world, "robot": robot, "error": error, "logs": logs}
     scale = report.get("scale") or {}
     return {"world": world, "robot": robot, "success": report["success"],
             "sim_time_s": report["sim_time_s"], "tracking_losses": report["tracking_losses"],
@@ -69,7 +72,21 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
             "exit_error_m": report["exit_error_m"], "wall_s": round(wall_s, 1),
             # A map built at the wrong scale fails the mission for reasons far from the scale.
             "scale_samples": scale.get("samples"),
-            "scale_relative_error": scale.get("relative_error")}
+            "scale_relative_error": scale.get("relative_error"),
+            **({"logs": logs} if logs else {})}
+
+
+def _keep_logs(out, ros_log, logs):
+    """Copies a failed run's ROS log folder, report.json and summary.png into logs; returns it,
+    or None when the run left no ROS log."""
+    if not os.path.isdir(ros_log):
+        return None
+    shutil.rmtree(logs, ignore_errors=True)
+    shutil.copytree(ros_log, logs, ignore_dangling_symlinks=True)
+    for kept in ("report.json", "summary.png"):
+        if os.path.isfile(os.path.join(out, kept)):
+            shutil.copy(os.path.join(out, kept), logs)
+    return logs
 
 
 def summarise(runs):

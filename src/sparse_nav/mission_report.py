@@ -19,12 +19,6 @@ def left_the_room(world, xy):
                    for outline in world.outlines)
 
 
-def tracking_losses(states, lost):
-    """Losses in a sequence of slam/state codes: the entries into ``lost`` (slam_bridge says LOST
-    again when SLAM gives the lost map up for a new one; that is the same loss)."""
-    return sum(1 for i, s in enumerate(states) if s == lost and (i == 0 or states[i - 1] != lost))
-
-
 def exit_error_m(world, exit_xy):
     """Distance (m) from an exit estimate to the nearest true exit; None without estimate."""
     if exit_xy is None or not world.exits:

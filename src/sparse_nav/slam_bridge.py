@@ -70,12 +70,6 @@ class StateTracker:
         self._n_tracked = int(n)
 
     @property
-    def initialising_new_map(self):
-        """The wrapper says SLAM initialises a map after having tracked: the lost map is given up.
-        Unknown (False) without the wrapper's state topic."""
-        return self._ever_ok and self._wrapper_code == ORB_NOT_INITIALIZED
-
-    @property
     def n_tracked(self):
         return self._n_tracked or 0
 

@@ -1049,18 +1049,6 @@ def test_tracking_back_in_a_new_slam_map_relocalises_until_it_merges_back():
     assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
 
 
-def test_a_scan_relocalises_at_once_when_slam_gives_the_lost_map_up():
-    m = Mission(ConductorConfig(wall_scan_enabled=False, scan_retry_lost_s=5.0))
-    m.tick(start_requested=True)
-    m.tick(scan_running=True)
-    assert m.tick(tracking_lost=True) == []  # the scan's retries try the lost map first
-    assert "the scan retries" in m.conductor.reason
-    actions = m.tick(dt=0.5, slam_initialising=True)
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
-                                                      (ActionKind.SCAN, "relocalise")]
-    assert m.conductor.reason == "SLAM started a new map: relocalising"
-
-
 def test_a_loss_while_waiting_for_a_merge_counts_its_lost_time_from_itself():
     m = on_the_way_to_the_exit(ConductorConfig(wall_scan_enabled=False, merge_wait_s=200.0,
                                                lost_timeout_s=60.0))

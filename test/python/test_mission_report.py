@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sparse_nav.mission_report import (MapAlignments, evaluate, exit_error_m, left_the_room,
-                                       path_length_m, planar_alignment, tracking_losses)
+                                       path_length_m, planar_alignment)
 from sparse_nav.sim.world import load_world
 from sparse_nav.transforms import make_transform, planar, quaternion_to_matrix
 
@@ -27,13 +27,6 @@ def test_lengths_and_errors():
     assert path_length_m([(0, 0), (3, 4), (3, 5)]) == pytest.approx(6.0)
     assert path_length_m([(1, 1)]) == 0.0
     assert exit_error_m(load_world("one_room"), None) is None
-
-
-def test_a_loss_said_twice_counts_once():
-    ok, lost, new_map = 1, 2, 3
-    # LOST, then LOST again when SLAM gives the map up, then the new map: one loss; then another.
-    assert tracking_losses([ok, lost, lost, new_map, ok, lost, ok], lost) == 2
-    assert tracking_losses([lost], lost) == 1 and tracking_losses([], lost) == 0
 
 
 def test_the_planar_alignment_puts_the_estimate_on_the_truth_and_ignores_tilt():

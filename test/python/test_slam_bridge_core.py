@@ -28,18 +28,8 @@ def test_state_from_wrapper():
     tracker.on_wrapper_state(ORB_LOST)
     state, reason = tracker.evaluate(0.0)
     assert state == LOST and "lost" in reason
-    assert not tracker.initialising_new_map, "lost: SLAM may still relocalise in the map"
     assert tracker.on_wrapper_state(ORB_NOT_INITIALIZED), "a new map after tracking worked"
-    assert tracker.initialising_new_map and tracker.evaluate(0.0)[0] == LOST
-    tracker.on_wrapper_state(ORB_OK)
-    assert not tracker.initialising_new_map
     assert tracker.source == "wrapper"
-
-
-def test_a_new_map_before_any_tracking_is_no_given_up_map():
-    tracker = StateTracker(BridgeConfig())
-    tracker.on_wrapper_state(ORB_NOT_INITIALIZED)
-    assert not tracker.initialising_new_map
 
 
 def test_state_inferred_from_staleness_and_tracked_points():

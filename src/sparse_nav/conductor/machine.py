@@ -68,7 +68,6 @@ class Observation:
 
     time_s: float
     tracking_lost: bool = False          # SLAM lost its map (not: not initialised yet)
-    slam_initialising: bool = False      # lost, and SLAM gave the map up for a new one
     slam_map_index: Optional[int] = None  # the SLAM map the robot tracks in (slam/state)
     # (from, into) SLAM map indices: the map changed while tracking, so SLAM merged `from` into
     # `into` (or re-anchored it there): what was found in `from` lives on in `into`.
@@ -415,15 +414,11 @@ class Conductor:
                 return self._give_up(t, f"SLAM tracking lost for more than {cfg.lost_timeout_s:g} s")
             if not obs.scan_running:
                 return [self._scan("relocalise")]
-            retried = t - self._lost_since_s > cfg.scan_retry_lost_s
-            if self._scan_kind != "relocalise" and (retried or obs.slam_initialising):
-                # The retries undo and redo one step to relocalise in the lost map. Once SLAM
-                # has given that map up, or they have had their time, a new map must start: a
-                # retried step goes back and forth along one short line, too little baseline.
-                why = ("SLAM started a new map" if obs.slam_initialising else
-                       f"SLAM tracking not back in {cfg.scan_retry_lost_s:g} s of the scan's "
-                       f"retries")
-                self._set(t, State.LOST, self.phase, f"{why}: relocalising")
+            if self._scan_kind != "relocalise" and t - self._lost_since_s > cfg.scan_retry_lost_s:
+                # A retried step goes back and forth along one short line: too little baseline
+                # for SLAM to start a new map (0.3 m for 30 s in a ground robot's scan).
+                self._set(t, State.LOST, self.phase, f"SLAM tracking not back in "
+                          f"{cfg.scan_retry_lost_s:g} s of the scan's retries: relocalising")
                 return [Action(ActionKind.STOP), self._scan("relocalise")]
             return []
         if self.state == State.LOST and self._goal_in_another_map(obs):

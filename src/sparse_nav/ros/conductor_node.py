@@ -130,7 +130,6 @@ class ConductorNode:
                     # No loss in between: SLAM merged the map (or the bridge re-anchored it).
                     self.obs.slam_merges += ((previous, msg.map_index),)
             self.obs.tracking_lost = lost
-            self.obs.slam_initialising = lost and msg.new_map_initialising
             self.obs.slam_map_index = msg.map_index
 
     def _on_motion_status(self, msg):

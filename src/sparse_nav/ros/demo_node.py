@@ -22,7 +22,7 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
-from sparse_nav.mission_report import MapAlignments, evaluate, tracking_losses
+from sparse_nav.mission_report import MapAlignments, evaluate
 from sparse_nav.msg import ConductorState, ExitCandidates, FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, pose_to_matrix, transform_to_matrix
@@ -328,7 +328,7 @@ class DemoNode:
             "exit_found_xy": None if found_exit is None else [round(v, 3) for v in found_exit],
             "states": visited,
             "slam_points": int(len(raw_points)),
-            "tracking_losses": tracking_losses([s.state for s in states], SlamState.LOST),
+            "tracking_losses": sum(1 for s in states if s.state == SlamState.LOST),
             "slam_maps": len({s.map_index for s in states}),
             "final_slam_state": states[-1].reason if states else "no state received",
             "scale": {

@@ -65,7 +65,6 @@ class SlamBridgeNode:
         self.last_odom_position = None
         self.state, self.reason = None, ""
         self.new_map_pending = False
-        self.initialising = False  # the last LOST published said SLAM initialises a new map
         self.n_poses = 0
         self.n_points = 0
         self.points_before_loss = 0
@@ -282,21 +281,18 @@ class SlamBridgeNode:
         if state == OK and self.new_map_pending:
             published, reason = NEW_MAP, self.map_event
             self.new_map_pending = False
-        initialising = published == LOST and self.tracker.initialising_new_map
-        if published != self.state or published == NEW_MAP or initialising != self.initialising:
-            self._publish_state(published, reason, now, initialising)
-        self.initialising = initialising
+        if published != self.state or published == NEW_MAP:
+            self._publish_state(published, reason, now)
         self.state = OK if published == NEW_MAP else state
         self.reason = reason
 
-    def _publish_state(self, state, reason, stamp, initialising=False):
+    def _publish_state(self, state, reason, stamp):
         msg = SlamState()
         msg.header.stamp = stamp
         msg.header.frame_id = self.map_frame
         msg.state = state
         msg.map_index = self.anchors.current.index if self.anchors.current else 0
         msg.n_tracked_points = self.tracker.n_tracked
-        msg.new_map_initialising = initialising
         msg.source = self.tracker.source
         msg.reason = reason
         self.state_pub.publish(msg)

@@ -274,6 +274,20 @@ def test_out_beyond_the_exit_stays_out_after_a_new_slam_map_takes_the_outline_aw
                                   "not back in 20 s")
 
 
+def test_the_wait_to_count_as_out_starts_again_at_a_loss_after_tracking_in_a_new_map():
+    m = passing_through(ConductorConfig(wall_scan_enabled=False, merge_wait_s=200.0))
+    m.tick(robot_xy=(7.5, 0.0))  # 1.5 m outside ROOM
+    m.tick(tracking_lost=True)
+    m.tick(scan_running=True)
+    m.tick(dt=2.0, tracking_lost=False, slam_map_index=1, room_outline=(), robot_xy=(0.0, 0.0))
+    m.tick(dt=25.0)  # tracking in map 1, waiting for a merge
+    m.tick(tracking_lost=True)  # 29 s after the first loss
+    m.tick(dt=10.0)
+    assert m.conductor.state == State.LOST and m.conductor.phase == Phase.PASS_THROUGH
+    m.tick(dt=11.0)
+    assert m.conductor.phase == Phase.DONE
+
+
 def test_tracking_back_soon_after_a_loss_outside_the_outline_goes_on_passing_through():
     m = passing_through()
     m.tick(robot_xy=(7.2, 0.0))

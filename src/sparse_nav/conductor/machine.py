@@ -227,7 +227,6 @@ class Conductor:
         self._alternatives: List[Tuple[float, float]] = []
         self._alternatives_map = None  # the SLAM map they (and exit_xy) were found in
         self._merge_wait_since_s = None  # tracking back in another map than the exit's, since
-        self._tracked_while_lost = False  # tracking was back (in another map) since the loss began
         self._rescans = 0
         self._door_xy = None  # the exit come through, where the robot looks around
         self._room_unconfirmed = False  # walls all round, no exit of theirs found yet
@@ -246,7 +245,7 @@ class Conductor:
         self._progress = None  # (time, best distance to the goal) of the last progress
         self._goal_losses = 0  # losses in a row on the way to the goal without coming closer
         self._loss_distance = None  # the closest to the goal at those losses
-        self._lost_since_s = None
+        self._lost_since_s = None  # start of the present unbroken loss; None while tracking
         self._recover_since_s = None
         self._recover_left_s = None  # when the robot's cell was last found free again
         self._scan_started = False
@@ -309,6 +308,12 @@ class Conductor:
             if self._map_index_seen is not None:
                 self._map_changed_s = t
             self._map_index_seen = obs.slam_map_index
+        # Timed from the observations, not from entering LOST: tracking back in another SLAM map
+        # keeps the state LOST, and forced losses every 30 s must not add up to lost_timeout_s.
+        if not obs.tracking_lost:
+            self._lost_since_s = None
+        elif self._lost_since_s is None:
+            self._lost_since_s = t
         out = self._left_the_room(t, obs)
         if out is not None:
             return out
@@ -388,15 +393,9 @@ class Conductor:
         """LOST and RECOVER take over from any state; None when neither applies."""
         cfg = self.config
         if obs.tracking_lost:
-            if self.state == State.LOST and self._tracked_while_lost:
-                # Lost again while waiting for a merge: the time lost counts from this loss, not
-                # from the first (forced losses every 30 s would add up to lost_timeout_s).
-                self._lost_since_s = t
-            self._tracked_while_lost = False
             if self.state != State.LOST:
                 if self.state != State.RECOVER:  # RECOVER resumes the state it interrupted
                     self._resume_state = self.state
-                self._lost_since_s = t
                 self._count_goal_loss()
                 if self.state == State.START and obs.scan_running:
                     # The scan's retry mechanism undoes and redoes steps until tracking is back.
@@ -499,7 +498,6 @@ class Conductor:
         merge_wait_s; then go on in the new map: through the exit already, look around there;
         else scan the room again and find the exit in it."""
         cfg = self.config
-        self._tracked_while_lost = True
         if self._merge_wait_since_s is None:
             self._merge_wait_since_s = t
             self._set(t, State.LOST, self.phase, f"SLAM tracking back in map "

@@ -463,6 +463,17 @@ def test_an_opening_only_toward_the_door_come_through_is_another_room():
     assert kinds(m.tick(scan_running=False, walls_around=walls)) == [ActionKind.FIND_EXIT]
 
 
+@pytest.mark.parametrize("free_bearings, phase", [(9, Phase.DONE), (8, Phase.FIND_EXIT)])
+def test_a_45_deg_opening_of_the_72_bearings_is_a_way_out_and_40_deg_a_room(free_bearings, phase):
+    # The grid's 72 bearings are 5 deg apart; benches saw 45 deg outside, between the building
+    # and the wall beyond its exit.
+    m = looking_around()
+    walls = (False,) * free_bearings + (True,) * (72 - free_bearings)
+    m.tick(scan_running=False, walls_around=walls)
+    assert m.conductor.phase == phase
+    assert f"openings up to {5 * free_bearings} deg wide" in m.conductor.reason
+
+
 def test_no_map_to_look_around_in_is_done_after_the_exit():
     m = looking_around()
     assert kinds(m.tick(scan_running=False, walls_around=())) == [ActionKind.STOP]

@@ -142,8 +142,9 @@ class ConductorConfig:
                                          # no room to look for the exit in
     max_rooms: int = 3                   # rooms escaped in turn; 1: done after the first exit
                                          # without looking around
-    room_max_opening_deg: float = 45.0   # beyond an exit, openings no wider than this all round
-                                         # (the door come through aside): another room
+    room_max_opening_deg: float = 42.5   # beyond an exit, openings no wider than this all round
+                                         # (the door come through aside): another room; between
+                                         # the 5-deg bearings, so 45 deg counts as a way out
     walls_around_range_m: float = 8.0    # ... walls this close count (the node's grid query)
 
     def validate(self):

@@ -413,7 +413,8 @@ def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_
     m.tick(scan_running=True, navigator_state="")
     m.tick(scan_running=False, walls_around=WALLS_OUTSIDE)
     assert (m.conductor.phase, m.conductor.reason) == (
-        Phase.DONE, "passed through the exit: openings up to 150 deg wide around")
+        Phase.DONE, "passed through the exit: openings up to 150 deg wide around, the room's side "
+        "walls 0.0 m past the door's wall")
 
 
 def test_the_first_rooms_untried_candidates_come_after_the_new_rooms():
@@ -472,6 +473,29 @@ def test_a_45_deg_opening_of_the_72_bearings_is_a_way_out_and_40_deg_a_room(free
     m.tick(scan_running=False, walls_around=walls)
     assert m.conductor.phase == phase
     assert f"openings up to {5 * free_bearings} deg wide" in m.conductor.reason
+
+
+def test_a_wide_opening_between_side_walls_going_on_past_the_doors_wall_is_another_room():
+    # Through a partition's door into a room with a blank wall ahead: the building's walls go
+    # on beside the robot, however open the blank wall looks.
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=2.5)
+    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
+    assert ("another room beyond the exit (openings up to 150 deg wide, but the room's side "
+            "walls go on 2.5 m past the door's wall)") in m.conductor.reason
+    # Less than room_side_walls_min_m of them (a wall beyond the exit crossing their line): out.
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.5)
+    assert m.conductor.phase == Phase.DONE
+
+
+def test_the_side_walls_of_the_last_tracked_look_decide_when_tracking_is_lost_at_its_end():
+    m = looking_around()
+    m.tick(walls_around=WALLS_OUTSIDE, side_walls_beyond_m=2.5)
+    m.tick(tracking_lost=True, walls_around=(), side_walls_beyond_m=0.0)
+    m.tick(tracking_lost=False, scan_running=False)
+    m.tick()
+    assert m.conductor.phase == Phase.FIND_EXIT and "side walls go on 2.5 m" in m.conductor.reason
 
 
 def test_no_map_to_look_around_in_is_done_after_the_exit():

@@ -129,3 +129,43 @@ def test_free_distance_can_take_the_map_edge_for_unknown(room):
     assert room.free_distance(10.0, 10.0, 0.0, off_map_free=True, max_m=2.0) == pytest.approx(2.0)
     # Walls still end it.
     assert room.free_distance(0.0, 0.0, 0.0, off_map_free=True) == pytest.approx(2.9, abs=0.06)
+
+
+def _building(side_walls_m, backdrop=False):
+    """A 4 m x 4 m room (outline (0, 0)-(4, 4)) at 0.05 m with a door at (4, 2) in its east wall;
+    its north and south walls carried on east for side_walls_m; a wall beyond the door (x = 6,
+    y -0.5..4.5, crossing both side lines) with backdrop."""
+    res = 0.05
+    cells = np.full((240, 280), -1, dtype=np.int8)   # x, y in [-2, 12)
+
+    def wall(x0, y0, x1, y1):
+        for t in np.linspace(0.0, 1.0, 800):
+            x, y = x0 + t * (x1 - x0), y0 + t * (y1 - y0)
+            cells[int((y + 2.0) / res), int((x + 2.0) / res)] = 100
+
+    for w in [(0, 0, 4, 0), (4, 0, 4, 1.5), (4, 2.5, 4, 4), (4, 4, 0, 4), (0, 4, 0, 0)]:
+        wall(*w)
+    if side_walls_m > 0:
+        wall(4, 0, 4 + side_walls_m, 0)
+        wall(4, 4, 4 + side_walls_m, 4)
+    if backdrop:
+        wall(6, -0.5, 6, 4.5)
+    return GridView(cells, res, (-2.0, -2.0))
+
+
+OUTLINE = ((0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0))
+
+
+def test_side_walls_beyond_a_door_show_the_building_going_on():
+    # Through an outer wall the side walls turn at the corners; a wall standing beyond the exit
+    # crosses their lines over a few cells only.
+    assert _building(0.0).side_walls_beyond_m(OUTLINE, (4.0, 2.0)) == 0.0
+    assert _building(0.0, backdrop=True).side_walls_beyond_m(OUTLINE, (4.0, 2.0)) < 0.5
+    # Through a partition's door they go on: mapped 0.5 m (where the count starts) to 3 m.
+    assert _building(3.0).side_walls_beyond_m(OUTLINE, (4.0, 2.0)) == pytest.approx(2.5, abs=0.1)
+    # The outline's vertex order and the door's place along its wall do not matter.
+    assert _building(3.0).side_walls_beyond_m(OUTLINE[::-1], (4.1, 3.0)) == \
+        pytest.approx(2.5, abs=0.1)
+    # No outline, or no door: nothing to go on from.
+    assert _building(3.0).side_walls_beyond_m((), (4.0, 2.0)) == 0.0
+    assert _building(3.0).side_walls_beyond_m(OUTLINE, None) == 0.0

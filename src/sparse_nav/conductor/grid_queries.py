@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from sparse_nav.exit_finder.geometry import boundary_distances
 from sparse_nav.scanning import Step
 
 
@@ -76,13 +77,49 @@ class GridView:
         distances = np.arange(0.0, max_m, self.resolution_m / 2.0)
         xs = x + np.outer(np.cos(bearings), distances)
         ys = y + np.outer(np.sin(bearings), distances)
+        return np.any(self.values_at(xs, ys) >= occupied_at, axis=1)
+
+    def values_at(self, xs, ys):
+        """Cell values at the points (xs, ys) (arrays of one shape); -1 (unknown) off the map."""
         cols = np.floor((xs - self.origin_xy[0]) / self.resolution_m).astype(int)
         rows = np.floor((ys - self.origin_xy[1]) / self.resolution_m).astype(int)
         on_map = (rows >= 0) & (rows < self.cells.shape[0]) & \
             (cols >= 0) & (cols < self.cells.shape[1])
-        values = np.full(xs.shape, -1, dtype=int)
+        values = np.full(np.shape(xs), -1, dtype=int)
         values[on_map] = self.cells[rows[on_map], cols[on_map]]
-        return np.any(values >= occupied_at, axis=1)
+        return values
+
+    def side_walls_beyond_m(self, outline, door_xy, near_m=0.5, far_m=4.0, tolerance_m=0.4,
+                            occupied_at=50):
+        """Metres of wall the map shows along the room's side walls carried on past the wall of
+        the door door_xy, the longer of the two sides: the outline edges on either side of the
+        door's edge, continued from near_m to far_m beyond its corners, with occupied cells
+        within tolerance_m of the line. A partition's door leads on between the building's walls;
+        past an outer wall they turn at the corners, and a wall standing beyond crosses the line
+        over a few cells only. 0 without an outline (fewer than three vertices)."""
+        poly = np.asarray(outline, dtype=float).reshape(-1, 2)
+        if len(poly) < 3 or door_xy is None:
+            return 0.0
+        n = len(poly)
+        door = np.asarray(door_xy, dtype=float)
+        k = int(boundary_distances(door, poly)[1][0])
+        step = self.resolution_m / 2.0
+        along = np.arange(near_m, far_m + 1e-9, step)
+        across = np.arange(-tolerance_m, tolerance_m + 1e-9, step)
+        best = 0.0
+        # Edge k runs from corner poly[k] to poly[k + 1]; each side edge ends at one of them.
+        for corner, before in ((poly[k], poly[k - 1]), (poly[(k + 1) % n], poly[(k + 2) % n])):
+            direction = corner - before
+            length = float(np.hypot(*direction))
+            if length < 1e-9:
+                continue
+            u = direction / length
+            normal = np.array([-u[1], u[0]])
+            # (along, across, 2): a band of points around the continued edge.
+            pts = corner + along[:, None, None] * u + across[None, :, None] * normal
+            walled = np.any(self.values_at(pts[..., 0], pts[..., 1]) >= occupied_at, axis=1)
+            best = max(best, float(np.count_nonzero(walled)) * step)
+        return best
 
     def free_share_beyond(self, exit_xy, from_xy, near_m, far_m, occupied_at=50):
         """Share of the cells from near_m to far_m beyond exit_xy, on the line from from_xy

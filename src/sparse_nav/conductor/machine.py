@@ -88,6 +88,9 @@ class Observation:
     # GridView.walls_around at the robot (bearings from the map's x axis), while looking around
     # beyond an exit; empty without a map or a pose.
     walls_around: Tuple = ()
+    # GridView.side_walls_beyond_m of room_outline at the door come through, while looking around:
+    # metres of the room's side walls the map shows carried on past the door's wall.
+    side_walls_beyond_m: float = 0.0
     navigator_state: str = ""            # navigator/status state name, lower case
     motion_failed: bool = False          # the motion layer gave up (blocked, refused commands)
     start_requested: bool = False
@@ -146,6 +149,9 @@ class ConductorConfig:
                                          # (the door come through aside): another room; between
                                          # the 5-deg bearings, so 45 deg counts as a way out
     walls_around_range_m: float = 8.0    # ... walls this close count (the node's grid query)
+    room_side_walls_min_m: float = 1.0   # ... and the room's side walls mapped this far on past
+                                         # the door's wall: another room however wide the
+                                         # openings (a partition's door; a blank wall ahead)
 
     def validate(self):
         for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts",
@@ -156,8 +162,8 @@ class ConductorConfig:
                      "lost_timeout_s", "recover_timeout_s", "recover_clear_s",
                      "left_room_margin_m", "inside_room_margin_m", "rejected_exit_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m",
-                     "walls_around_range_m", "merge_wait_s", "map_settle_s", "left_room_wait_s",
-                     "scan_retry_lost_s"):
+                     "walls_around_range_m", "room_side_walls_min_m", "merge_wait_s",
+                     "map_settle_s", "left_room_wait_s", "scan_retry_lost_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -264,6 +270,7 @@ class Conductor:
         # outline was at hand (a change of SLAM map takes the outline away, not where it was).
         self._outside_by = 0.0
         self._last_walls_around = ()  # the newest look around while tracking
+        self._last_side_walls_m = 0.0  # ... and its side_walls_beyond_m
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
@@ -324,6 +331,7 @@ class Conductor:
                 self._outside_by = distance_outside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.LOOK_AROUND and len(obs.walls_around):
                 self._last_walls_around = tuple(obs.walls_around)
+                self._last_side_walls_m = obs.side_walls_beyond_m
         if self.phase == Phase.FIND_EXIT and obs.exit_answered:
             # Seen once: an answer that arrives while lost or recovering is acted on after.
             self._exit_answer = (obs.exit_xy, tuple(obs.exit_alternatives), obs.exit_leads_out)
@@ -348,7 +356,7 @@ class Conductor:
         self._alternatives = []
         self._alternatives_map = self._merge_wait_since_s = None
         self._rescans = 0
-        self._last_walls_around = ()
+        self._last_walls_around, self._last_side_walls_m = (), 0.0
         self._outside_by = 0.0
         self._room_unconfirmed = False
         self.exit_xy = self.goal_xy = None
@@ -601,6 +609,11 @@ class Conductor:
         self._set(t, State.IDLE, Phase.FIND_EXIT, why)
         return [Action(ActionKind.FIND_EXIT, self._exit_viewpoint)]
 
+    @property
+    def door_xy(self):
+        """The exit come through, beyond which the robot looks around (None before one)."""
+        return self._door_xy
+
     def _widest_opening(self, walls):
         """The widest opening around the robot but the one toward the exit it came through."""
         skip = None
@@ -615,27 +628,35 @@ class Conductor:
         if self.config.max_rooms == 1:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
-        self._last_walls_around = ()
+        self._last_walls_around, self._last_side_walls_m = (), 0.0
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
 
     def _looked_around(self, t, obs):
-        """Walls all round (but for the door come through): another room, whose exit is looked
-        for from here, the door come through out of the running; else out: done."""
-        walls = tuple(obs.walls_around) or self._last_walls_around
+        """Walls all round (but for the door come through), or the room's side walls going on
+        past the door's wall: another room, whose exit is looked for from here, the door come
+        through out of the running; else out: done."""
+        walls, side_m = ((tuple(obs.walls_around), obs.side_walls_beyond_m) if obs.walls_around
+                         else (self._last_walls_around, self._last_side_walls_m))
         if not len(walls):
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit (no map to look "
                                                  "around in)")
             return [Action(ActionKind.STOP)]
         opening = self._widest_opening(walls)
+        seen = f"openings up to {opening:.0f} deg wide"
         if opening > self.config.room_max_opening_deg:
-            self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: openings up to "
-                                                 f"{opening:.0f} deg wide around")
-            return [Action(ActionKind.STOP)]
+            if side_m < self.config.room_side_walls_min_m:
+                self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
+                                                     f"the room's side walls {side_m:.1f} m past "
+                                                     "the door's wall")
+                return [Action(ActionKind.STOP)]
+            # A blank wall ahead looks like open space; walls going on beside it do not.
+            seen += f", but the room's side walls go on {side_m:.1f} m past the door's wall"
         if self.rooms >= self.config.max_rooms:
-            return self._give_up(t, f"walls all round beyond the exit (openings up to "
-                                    f"{opening:.0f} deg wide) after {self.rooms} rooms")
+            kind = "another room" if opening > self.config.room_max_opening_deg \
+                else "walls all round"
+            return self._give_up(t, f"{kind} beyond the exit ({seen}) after {self.rooms} rooms")
         if self._door_xy is not None:
             self._rejected.append(self._door_xy)
         self.rooms += 1
@@ -644,8 +665,8 @@ class Conductor:
         self.room_origin_xy = obs.robot_xy or self._last_tracked_xy
         self._exit_viewpoint = "robot"
         self._exit_attempts = 0
-        return self._ask_exit(t, f"another room beyond the exit (openings up to {opening:.0f} deg "
-                                 f"wide): find its exit ({self.rooms}/{self.config.max_rooms})")
+        return self._ask_exit(t, f"another room beyond the exit ({seen}): find its exit "
+                                 f"({self.rooms}/{self.config.max_rooms})")
 
     def _find_exit(self, t, obs):
         cfg = self.config

@@ -457,6 +457,33 @@ def test_walls_around_without_an_exit_but_the_door_come_through_scan_more_then_a
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (9.0, 3.0))]
 
 
+def test_a_room_whose_only_door_is_the_one_come_through_sends_the_robot_back_to_the_next_candidate():
+    m = Mission(ConductorConfig(wall_scan_enabled=False))
+    m.obs.slam_map_index = 0
+    m.tick(start_requested=True)
+    m.run_scan()
+    # The first room's exit candidates: the door at (5, 0) first, one in its north wall next.
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((2.0, 1.0),),
+           room_outline=ROOM)
+    m.tick(robot_xy=(5.0, 0.0), navigator_state="reached")
+    m.tick(robot_xy=(6.5, 0.0), navigator_state="reached")
+    m.tick(scan_running=True, navigator_state="")
+    m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    assert m.conductor.rooms == 2
+    for _ in range(2):
+        m.tick(exit_answered=True, exit_xy=(5.0, 0.1), exit_alternatives=())
+        m.run_scan()
+    actions = m.tick(exit_answered=True, exit_xy=(5.0, 0.1), exit_alternatives=())
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (2.0, 1.0))]
+    assert m.conductor.reason == ("the walls around hold no exit but the door come through after "
+                                  "3 attempts: back to the room before's next candidate "
+                                  "(2.00, 1.00)")
+    # Beyond it the robot goes on along the line from the first room's origin, the start.
+    m.tick(robot_xy=(2.0, 1.0), navigator_state="reached")
+    assert m.conductor.phase == Phase.PASS_THROUGH
+    assert m.conductor.goal_xy == pytest.approx((2.0 + 1.5 * 2.0 / 5 ** 0.5, 1.0 + 1.5 / 5 ** 0.5))
+
+
 def test_an_opening_only_toward_the_door_come_through_is_another_room():
     m = looking_around()
     # Walls everywhere but 150-210 deg: toward the exit at (5, 0) from (6.5, 0).

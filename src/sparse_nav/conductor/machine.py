@@ -236,6 +236,7 @@ class Conductor:
         self._merge_wait_since_s = None  # tracking back in another map than the exit's, since
         self._rescans = 0
         self._door_xy = None  # the exit come through, where the robot looks around
+        self._room_before_origin_xy = None  # room_origin_xy of the room the door led out of
         self._room_unconfirmed = False  # walls all round, no exit of theirs found yet
         # Exits passed through without leaving the room. They hold in every SLAM map: slam_bridge
         # anchors a new map where the robot was last tracked, and such a door is near it.
@@ -662,6 +663,7 @@ class Conductor:
         self.rooms += 1
         self._room_unconfirmed = True
         self._outside_by = 0.0
+        self._room_before_origin_xy = self.room_origin_xy
         self.room_origin_xy = obs.robot_xy or self._last_tracked_xy
         self._exit_viewpoint = "robot"
         self._exit_attempts = 0
@@ -695,16 +697,24 @@ class Conductor:
                     # A second room's exit may lie where the look around did not see.
                     self._set(t, State.START, Phase.WALL_SCAN, f"{why}: scan more")
                     return [self._scan("random")]
-                # Still none: the space between a building and what stands beyond its exit.
-                self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {why} after "
-                                                     f"{self._exit_attempts} attempts")
-                return [Action(ActionKind.STOP)]
+                why += f" after {self._exit_attempts} attempts"
+                back = self._untried_alternatives(obs)
+                if not back:
+                    # Still none: the space between a building and what stands beyond its exit.
+                    self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {why}")
+                    return [Action(ActionKind.STOP)]
+                # A room whose only door is the one come through: the room before's exit lies
+                # elsewhere, through its next candidate (the way there leads back through the door).
+                self._room_unconfirmed = False
+                self.room_origin_xy = self._room_before_origin_xy
+                self.exit_xy, self._alternatives = back[0], back[1:]
+                return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
+                                      f"{why}: back to the room before's next candidate "
+                                      f"({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
             self._room_unconfirmed = False
         if candidates:
             # The room before's untried candidates come last (a door into a room with no exit).
-            if self._alternatives_map == obs.slam_map_index:
-                candidates += [c for c in self._alternatives if c not in candidates
-                               and not self._was_rejected(c)]
+            candidates += self._untried_alternatives(obs, candidates)
         if candidates:
             self._alternatives_map = obs.slam_map_index
             self.exit_xy = candidates[0]
@@ -789,6 +799,13 @@ class Conductor:
         else:
             self._failure_since_s = None
         return []
+
+    def _untried_alternatives(self, obs, tried=()):
+        """The candidates still in line, not rejected nor in tried, when they were found in the
+        SLAM map tracked now (their coordinates mean nothing in another)."""
+        if self._alternatives_map != obs.slam_map_index:
+            return []
+        return [c for c in self._alternatives if c not in tried and not self._was_rejected(c)]
 
     def _was_rejected(self, xy):
         """Near an exit passed through without leaving the room."""

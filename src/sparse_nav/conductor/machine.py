@@ -7,8 +7,10 @@ state or phase is recorded with its reason, so a run can be explained afterwards
 States (004): START builds the first map (scans), IDLE waits with a healthy map, GOAL navigates,
 LOST waits for tracking to come back (motion stopped), RECOVER frees a robot that the map puts
 inside an obstacle. Phases (000): initial scan -> wall scan -> find exit -> go to the exit -> pass
-through -> done, or gave up with the reason. Beyond an exit the robot looks around: walls all round
-mean another room of the building (a partition's door), whose exit is found in turn.
+through -> done, or gave up with the reason. Beyond an exit the robot looks around: walls all round,
+or the room's side walls going on past the door's wall, mean another room of the building (a
+partition's door), whose exit is found in turn; a room with no door but that one sends the robot
+back to the room before's next candidate.
 """
 import dataclasses
 import enum

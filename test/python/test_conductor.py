@@ -512,7 +512,7 @@ def test_a_wide_opening_between_side_walls_going_on_past_the_doors_wall_is_anoth
             "walls go on 2.5 m past the door's wall)") in m.conductor.reason
     # Less than room_side_walls_min_m of them (a wall beyond the exit crossing their line): out.
     m = looking_around()
-    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.5)
+    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.3)
     assert m.conductor.phase == Phase.DONE
 
 

@@ -151,7 +151,7 @@ class ConductorConfig:
                                          # (the door come through aside): another room; between
                                          # the 5-deg bearings, so 45 deg counts as a way out
     walls_around_range_m: float = 8.0    # ... walls this close count (the node's grid query)
-    room_side_walls_min_m: float = 1.0   # ... and the room's side walls mapped this far on past
+    room_side_walls_min_m: float = 0.5   # ... and the room's side walls mapped this far on past
                                          # the door's wall: another room however wide the
                                          # openings (a partition's door; a blank wall ahead)
 

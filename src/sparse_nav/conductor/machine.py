@@ -272,8 +272,8 @@ class Conductor:
         # Beyond the exit: how far outside the room outline the robot was last tracked while the
         # outline was at hand (a change of SLAM map takes the outline away, not where it was).
         self._outside_by = 0.0
-        self._last_walls_around = ()  # the newest look around while tracking
-        self._last_side_walls_m = 0.0  # ... and its side_walls_beyond_m
+        # (walls_around, side_walls_beyond_m) of the newest look around while tracking
+        self._last_look = ((), 0.0)
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
@@ -333,8 +333,7 @@ class Conductor:
             if self.phase in (Phase.PASS_THROUGH, Phase.LOOK_AROUND) and len(obs.room_outline) >= 3:
                 self._outside_by = distance_outside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.LOOK_AROUND and len(obs.walls_around):
-                self._last_walls_around = tuple(obs.walls_around)
-                self._last_side_walls_m = obs.side_walls_beyond_m
+                self._last_look = (tuple(obs.walls_around), obs.side_walls_beyond_m)
         if self.phase == Phase.FIND_EXIT and obs.exit_answered:
             # Seen once: an answer that arrives while lost or recovering is acted on after.
             self._exit_answer = (obs.exit_xy, tuple(obs.exit_alternatives), obs.exit_leads_out)
@@ -359,7 +358,7 @@ class Conductor:
         self._alternatives = []
         self._alternatives_map = self._merge_wait_since_s = None
         self._rescans = 0
-        self._last_walls_around, self._last_side_walls_m = (), 0.0
+        self._last_look = ((), 0.0)
         self._outside_by = 0.0
         self._room_unconfirmed = False
         self.exit_xy = self.goal_xy = None
@@ -631,7 +630,7 @@ class Conductor:
         if self.config.max_rooms == 1:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
-        self._last_walls_around, self._last_side_walls_m = (), 0.0
+        self._last_look = ((), 0.0)
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
@@ -641,14 +640,15 @@ class Conductor:
         past the door's wall: another room, whose exit is looked for from here, the door come
         through out of the running; else out: done."""
         walls, side_m = ((tuple(obs.walls_around), obs.side_walls_beyond_m) if obs.walls_around
-                         else (self._last_walls_around, self._last_side_walls_m))
+                         else self._last_look)
         if not len(walls):
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit (no map to look "
                                                  "around in)")
             return [Action(ActionKind.STOP)]
         opening = self._widest_opening(walls)
         seen = f"openings up to {opening:.0f} deg wide"
-        if opening > self.config.room_max_opening_deg:
+        wide = opening > self.config.room_max_opening_deg
+        if wide:
             if side_m < self.config.room_side_walls_min_m:
                 self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
                                                      f"the room's side walls {side_m:.1f} m past "
@@ -657,8 +657,7 @@ class Conductor:
             # A blank wall ahead looks like open space; walls going on beside it do not.
             seen += f", but the room's side walls go on {side_m:.1f} m past the door's wall"
         if self.rooms >= self.config.max_rooms:
-            kind = "another room" if opening > self.config.room_max_opening_deg \
-                else "walls all round"
+            kind = "another room" if wide else "walls all round"
             return self._give_up(t, f"{kind} beyond the exit ({seen}) after {self.rooms} rooms")
         if self._door_xy is not None:
             self._rejected.append(self._door_xy)
@@ -688,7 +687,7 @@ class Conductor:
             self._set(t, State.START, Phase.WALL_SCAN, "the map shows no way out beyond the "
                       "exits found: scan more")
             return [self._scan("random")]
-        candidates = []
+        candidates, found = [], "exit found at"
         if answered and exit_xy is not None:
             candidates = [c for c in [tuple(exit_xy)] + [tuple(xy) for xy in alternatives]
                           if not self._was_rejected(c)]
@@ -707,22 +706,17 @@ class Conductor:
                     return [Action(ActionKind.STOP)]
                 # A room whose only door is the one come through: the room before's exit lies
                 # elsewhere, through its next candidate (the way there leads back through the door).
-                self._room_unconfirmed = False
+                candidates, found = back, f"{why}: back to the room before's next candidate"
                 self.room_origin_xy = self._room_before_origin_xy
-                self.exit_xy, self._alternatives = back[0], back[1:]
-                return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
-                                      f"{why}: back to the room before's next candidate "
-                                      f"({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
             self._room_unconfirmed = False
         if candidates:
             # The room before's untried candidates come last (a door into a room with no exit).
             candidates += self._untried_alternatives(obs, candidates)
-        if candidates:
             self._alternatives_map = obs.slam_map_index
             self.exit_xy = candidates[0]
             self._alternatives = candidates[1:]
             return self._navigate(t, Phase.GO_TO_EXIT, self.exit_xy,
-                                  f"exit found at ({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
+                                  f"{found} ({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f})")
         timed_out = t - self._exit_requested_s > cfg.exit_answer_timeout_s
         if not (answered or timed_out):
             return []

@@ -5,6 +5,8 @@ Each run is `roslaunch sparse_nav demo.launch world:=random:SEED robot:=ROBOT` (
 the built-in simulator, headless) and reads the run's report.json. The stress setting forces a
 SLAM loss every 30 sim-seconds and drops 10 % of the SLAM messages. Reads nothing from ../shared.
 A run costs minutes of wall time, so the default is small; `--worlds 50` is the full bench.
+Each run also lists its looks around beyond an exit, each with its verdict and whether the robot
+truly stood outside then; the summary counts them, which measures the conductor's judgement.
 """
 import argparse
 import json
@@ -17,6 +19,10 @@ import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "src"))
+
+from sparse_nav.mission_report import tally_look_arounds  # noqa: E402
+
 STRESS_LOSS_PERIOD_S = 30.0
 STRESS_DROP_FRACTION = 0.1
 
@@ -73,6 +79,7 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
             # A map built at the wrong scale fails the mission for reasons far from the scale.
             "scale_samples": scale.get("samples"),
             "scale_relative_error": scale.get("relative_error"),
+            "look_arounds": report.get("look_arounds", []),
             **({"logs": logs} if logs else {})}
 
 
@@ -92,6 +99,8 @@ def _keep_logs(out, ros_log, logs):
 def summarise(runs):
     ok = [r for r in runs if r.get("success")]
     return {"runs": len(runs), "successes": len(ok),
+            "look_arounds": tally_look_arounds(
+                [look for r in runs for look in r.get("look_arounds", [])]),
             "success_rate": round(len(ok) / len(runs), 3) if runs else None,
             "median_sim_time_to_exit_s": (sorted(r["sim_time_s"] for r in ok)[len(ok) // 2]
                                           if ok else None),
@@ -136,6 +145,10 @@ def main(argv=None):
         rate = "-" if s["success_rate"] is None else f"{100 * s['success_rate']:.0f}%"
         median = "-" if s["median_sim_time_to_exit_s"] is None else f"{s['median_sim_time_to_exit_s']:.0f}"
         print(f"{key:<16} {s['runs']:>5} {rate:>8} {median:>13} {s['losses_survived']:>16}")
+    print("look arounds beyond an exit, verdict against the truth:")
+    for key, entry in table.items():
+        print(f"{key:<16} " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                         for k, v in entry["summary"]["look_arounds"].items()))
     os.makedirs(os.path.dirname(args.out), exist_ok=True)
     with open(args.out, "w") as f:
         json.dump({"bench": "mission", "data": "generated worlds random:SEED, none from ../shared",

@@ -36,6 +36,35 @@ def evaluate(world, final_phase, true_track, exit_truth_xy):
                              else round(exit_error_m(world, exit_truth_xy), 3))}
 
 
+class LookArounds:
+    """Each look around beyond an exit, with the phase it led to (done: out; anything else: not
+    yet out), its reason, and whether the robot truly stood outside then: the measure of the
+    conductor's judgement, which the mission's success alone hides."""
+
+    def __init__(self, world):
+        self.world = world
+        self.records = []
+        self._phase = ""
+
+    def observe(self, sim_time_s, phase, reason, true_xy):
+        """One conductor state; true_xy is the robot's true (x, y) then, or None if unknown."""
+        if self._phase == "look_around" and phase != "look_around" and true_xy is not None:
+            self.records.append({"sim_time_s": round(float(sim_time_s), 2), "then": phase,
+                                 "reason": reason,
+                                 "truly_outside": left_the_room(self.world, true_xy)})
+        self._phase = phase
+
+
+def tally_look_arounds(records):
+    """Counts of look-around records by verdict (out or inside) and truth."""
+    counts = {"out_truly_outside": 0, "out_truly_inside": 0, "inside_truly_outside": 0,
+              "inside_truly_inside": 0}
+    for look in records:
+        verdict = "out" if look["then"] == "done" else "inside"
+        counts[f"{verdict}_truly_{'outside' if look['truly_outside'] else 'inside'}"] += 1
+    return counts
+
+
 def planar_alignment(t_truth_base, t_map_base):
     """4x4 map -> truth frame that puts the estimated base pose on the true one, in the x-y plane.
 

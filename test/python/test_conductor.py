@@ -401,7 +401,8 @@ def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_
     actions = m.tick(scan_running=False, walls_around=WALLS_ROOM)
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.FIND_EXIT, "robot")]
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
-    assert "another room beyond the exit (openings up to 30 deg wide)" in m.conductor.reason
+    assert ("another room beyond the exit (openings up to 30 deg wide, the room's side walls "
+            "0.0 m past the door's wall)") in m.conductor.reason
     # The door come through is no exit of the new room; the new room's exit goes first.
     actions = m.tick(exit_answered=True, exit_xy=(5.1, 0.2), exit_alternatives=((9.0, 3.0),))
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (9.0, 3.0))]
@@ -581,8 +582,8 @@ def test_the_number_of_rooms_is_bounded():
     actions = m.tick(scan_running=False, walls_around=WALLS_ROOM)
     assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
     assert m.conductor.phase == Phase.GAVE_UP
-    assert m.conductor.reason == ("walls all round beyond the exit (openings up to 30 deg wide) "
-                                  "after 3 rooms")
+    assert m.conductor.reason == ("walls all round beyond the exit (openings up to 30 deg wide, "
+                                  "the room's side walls 0.0 m past the door's wall) after 3 rooms")
 
 
 def test_not_initialised_slam_is_not_a_loss():

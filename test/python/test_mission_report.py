@@ -2,8 +2,9 @@
 import numpy as np
 import pytest
 
-from sparse_nav.mission_report import (MapAlignments, evaluate, exit_error_m, left_the_room,
-                                       path_length_m, planar_alignment)
+from sparse_nav.mission_report import (LookArounds, MapAlignments, evaluate, exit_error_m,
+                                       left_the_room, path_length_m, planar_alignment,
+                                       tally_look_arounds)
 from sparse_nav.sim.world import load_world
 from sparse_nav.transforms import make_transform, planar, quaternion_to_matrix
 
@@ -21,6 +22,25 @@ def test_success_needs_done_and_the_robot_outside():
     assert report["exit_error_m"] == pytest.approx(0.1)
     assert evaluate(world, "done", [], None) == {"success": False, "left_the_room": False,
                                                  "path_length_m": 0.0, "exit_error_m": None}
+
+
+def test_each_look_around_is_kept_with_its_verdict_and_where_the_robot_truly_stood():
+    looks = LookArounds(load_world("one_room"))
+    looks.observe(10.0, "pass_through", "at the exit: pass through", (5.5, 5.5))
+    looks.observe(12.0, "look_around", "passed through the exit: look around", (5.5, 6.6))
+    # A loss while looking keeps the phase: no verdict yet.
+    looks.observe(13.0, "look_around", "SLAM tracking lost: the scan retries", (5.5, 6.6))
+    looks.observe(20.0, "find_exit", "another room beyond the exit", (5.5, 6.6))
+    looks.observe(30.0, "look_around", "passed through the exit: look around", (5.5, 5.5))
+    looks.observe(31.0, "done", "passed through the exit", (5.5, 5.5))
+    looks.observe(32.0, "look_around", "look around", (5.5, 6.6))
+    looks.observe(33.0, "done", "no pose", None)
+    assert [(r["sim_time_s"], r["then"], r["truly_outside"]) for r in looks.records] == [
+        (20.0, "find_exit", True), (31.0, "done", False)]
+    assert looks.records[0]["reason"] == "another room beyond the exit"
+    assert tally_look_arounds(looks.records + [{"then": "done", "truly_outside": True}]) == {
+        "out_truly_outside": 1, "out_truly_inside": 1, "inside_truly_outside": 1,
+        "inside_truly_inside": 0}
 
 
 def test_lengths_and_errors():

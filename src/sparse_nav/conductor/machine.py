@@ -656,6 +656,8 @@ class Conductor:
                 return [Action(ActionKind.STOP)]
             # A blank wall ahead looks like open space; walls going on beside it do not.
             seen += f", but the room's side walls go on {side_m:.1f} m past the door's wall"
+        else:
+            seen += f", the room's side walls {side_m:.1f} m past the door's wall"
         if self.rooms >= self.config.max_rooms:
             kind = "another room" if wide else "walls all round"
             return self._give_up(t, f"{kind} beyond the exit ({seen}) after {self.rooms} rooms")

@@ -22,7 +22,7 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
-from sparse_nav.mission_report import MapAlignments, evaluate
+from sparse_nav.mission_report import LookArounds, MapAlignments, evaluate
 from sparse_nav.msg import ConductorState, ExitCandidates, FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, pose_to_matrix, transform_to_matrix
@@ -72,6 +72,7 @@ class DemoNode:
         self.frame_period_s = float(rospy.get_param("~video_frame_period_s", 1.0))
         self.world = load_ros_world(self.world_name)
         self.conductor_states = []
+        self.look_arounds = LookArounds(self.world)
         self.t_truth_map = None  # the simulator's map -> sim_world, for the first SLAM map
         self.alignments = MapAlignments()
         self.truth_history = collections.deque(maxlen=200)  # ground_truth/odom, for alignment
@@ -104,6 +105,8 @@ class DemoNode:
                 self.states.append(msg)
             elif topic == "conductor/state":
                 self.conductor_states.append(msg)
+                self.look_arounds.observe(rospy.Time.now().to_sec(), msg.phase, msg.reason,
+                                          self.true_path[-1] if self.true_path else None)
             elif topic == "ground_truth/odom":
                 p = msg.pose.pose.position
                 self.true_path.append((p.x, p.y))
@@ -304,6 +307,7 @@ class DemoNode:
                      found_exit=found_exit, exit_lines=self._exit_lines(), planned_path=planned)
         with self.lock:
             conductor_states = list(self.conductor_states)
+            look_arounds = list(self.look_arounds.records)
         final_phase = conductor_states[-1].phase if conductor_states else "no conductor state"
         judgement = evaluate(world, final_phase, self.true_path, found_exit)
         visited = []
@@ -327,6 +331,7 @@ class DemoNode:
             "exit_error_m": judgement["exit_error_m"],
             "exit_found_xy": None if found_exit is None else [round(v, 3) for v in found_exit],
             "states": visited,
+            "look_arounds": look_arounds,
             "slam_points": int(len(raw_points)),
             "tracking_losses": sum(1 for s in states if s.state == SlamState.LOST),
             "slam_maps": len({s.map_index for s in states}),

@@ -398,11 +398,11 @@ def looking_around():
 def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_turn():
     m = looking_around()
     # The one bearing without a wall (330 deg) is not toward the door come through (180 deg).
-    actions = m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    actions = m.tick(scan_running=False, walls_around=WALLS_ROOM, side_walls_beyond_m=1.5)
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.FIND_EXIT, "robot")]
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
     assert ("another room beyond the exit (openings up to 30 deg wide, the room's side walls "
-            "0.0 m past the door's wall)") in m.conductor.reason
+            "go on 1.5 m past the door's wall)") in m.conductor.reason
     # The door come through is no exit of the new room; the new room's exit goes first.
     actions = m.tick(exit_answered=True, exit_xy=(5.1, 0.2), exit_alternatives=((9.0, 3.0),))
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (9.0, 3.0))]
@@ -412,10 +412,10 @@ def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_
     assert m.conductor.goal_xy == pytest.approx(tuple(np.array([9.0, 3.0]) + 1.5 * along))
     m.tick(robot_xy=m.conductor.goal_xy, navigator_state="reached")
     m.tick(scan_running=True, navigator_state="")
-    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE)
+    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.0)
     assert (m.conductor.phase, m.conductor.reason) == (
         Phase.DONE, "passed through the exit: openings up to 150 deg wide around, the room's side "
-        "walls 0.0 m past the door's wall")
+        "walls end at the door's wall (0.0 m past it)")
 
 
 def test_the_first_rooms_untried_candidates_come_after_the_new_rooms():
@@ -517,6 +517,22 @@ def test_a_wide_opening_between_side_walls_going_on_past_the_doors_wall_is_anoth
     assert m.conductor.phase == Phase.DONE
 
 
+@pytest.mark.parametrize("side_m, phase, said", [
+    (0.0, Phase.DONE, "passed through the exit: openings up to 30 deg wide around, but the "
+                      "room's side walls end at the door's wall (0.0 m past it)"),
+    (None, Phase.FIND_EXIT, "another room beyond the exit (openings up to 30 deg wide, no room "
+                            "outline to measure the room's side walls on)")])
+def test_walls_all_round_where_the_rooms_side_walls_end_at_the_doors_wall_are_beyond_the_building(
+        side_m, phase, said):
+    # Out through an outer wall into a strip between the building and a wall beyond it: walls
+    # nearly all round, but the room's side walls turn at its corners. Without an outline to
+    # measure them on, walls all round stay another room.
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_ROOM, side_walls_beyond_m=side_m)
+    assert m.conductor.phase == phase
+    assert said in m.conductor.reason
+
+
 def test_the_side_walls_of_the_last_tracked_look_decide_when_tracking_is_lost_at_its_end():
     m = looking_around()
     m.tick(walls_around=WALLS_OUTSIDE, side_walls_beyond_m=2.5)
@@ -583,7 +599,8 @@ def test_the_number_of_rooms_is_bounded():
     assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
     assert m.conductor.phase == Phase.GAVE_UP
     assert m.conductor.reason == ("walls all round beyond the exit (openings up to 30 deg wide, "
-                                  "the room's side walls 0.0 m past the door's wall) after 3 rooms")
+                                  "no room outline to measure the room's side walls on) after 3 "
+                                  "rooms")
 
 
 def test_not_initialised_slam_is_not_a_loss():

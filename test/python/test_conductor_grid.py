@@ -167,5 +167,5 @@ def test_side_walls_beyond_a_door_show_the_building_going_on():
     assert _building(3.0).side_walls_beyond_m(OUTLINE[::-1], (4.1, 3.0)) == \
         pytest.approx(2.5, abs=0.1)
     # No outline, or no door: nothing to go on from.
-    assert _building(3.0).side_walls_beyond_m((), (4.0, 2.0)) == 0.0
-    assert _building(3.0).side_walls_beyond_m(OUTLINE, None) == 0.0
+    assert _building(3.0).side_walls_beyond_m((), (4.0, 2.0)) is None
+    assert _building(3.0).side_walls_beyond_m(OUTLINE, None) is None

@@ -96,10 +96,10 @@ class GridView:
         door's edge, continued from near_m to far_m beyond its corners, with occupied cells
         within tolerance_m of the line. A partition's door leads on between the building's walls;
         past an outer wall they turn at the corners, and a wall standing beyond crosses the line
-        over a few cells only. 0 without an outline (fewer than three vertices)."""
+        over a few cells only. None without an outline (fewer than three vertices) or a door."""
         poly = np.asarray(outline, dtype=float).reshape(-1, 2)
         if len(poly) < 3 or door_xy is None:
-            return 0.0
+            return None
         n = len(poly)
         door = np.asarray(door_xy, dtype=float)
         k = int(boundary_distances(door, poly)[1][0])

@@ -7,9 +7,9 @@ state or phase is recorded with its reason, so a run can be explained afterwards
 States (004): START builds the first map (scans), IDLE waits with a healthy map, GOAL navigates,
 LOST waits for tracking to come back (motion stopped), RECOVER frees a robot that the map puts
 inside an obstacle. Phases (000): initial scan -> wall scan -> find exit -> go to the exit -> pass
-through -> done, or gave up with the reason. Beyond an exit the robot looks around: walls all round,
-or the room's side walls going on past the door's wall, mean another room of the building (a
-partition's door), whose exit is found in turn; a room with no door but that one sends the robot
+through -> done, or gave up with the reason. Beyond an exit the robot looks around: the room's side
+walls going on past the door's wall, or walls all round where no room outline measures them, mean
+another room of the building (a partition's door), whose exit is found in turn; a room with no door but that one sends the robot
 back to the room before's next candidate.
 """
 import dataclasses
@@ -91,8 +91,9 @@ class Observation:
     # beyond an exit; empty without a map or a pose.
     walls_around: Tuple = ()
     # GridView.side_walls_beyond_m of room_outline at the door come through, while looking around:
-    # metres of the room's side walls the map shows carried on past the door's wall.
-    side_walls_beyond_m: float = 0.0
+    # metres of the room's side walls the map shows carried on past the door's wall; None
+    # without an outline (or a door) to measure them on.
+    side_walls_beyond_m: Optional[float] = None
     navigator_state: str = ""            # navigator/status state name, lower case
     motion_failed: bool = False          # the motion layer gave up (blocked, refused commands)
     start_requested: bool = False
@@ -151,9 +152,10 @@ class ConductorConfig:
                                          # (the door come through aside): another room; between
                                          # the 5-deg bearings, so 45 deg counts as a way out
     walls_around_range_m: float = 8.0    # ... walls this close count (the node's grid query)
-    room_side_walls_min_m: float = 0.5   # ... and the room's side walls mapped this far on past
-                                         # the door's wall: another room however wide the
-                                         # openings (a partition's door; a blank wall ahead)
+    room_side_walls_min_m: float = 0.5   # the room's side walls mapped this far on past the
+                                         # door's wall: another room however wide the openings
+                                         # (a partition's door; a blank wall ahead); less: out
+                                         # however narrow (the openings decide without outline)
 
     def validate(self):
         for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts",
@@ -273,7 +275,7 @@ class Conductor:
         # outline was at hand (a change of SLAM map takes the outline away, not where it was).
         self._outside_by = 0.0
         # (walls_around, side_walls_beyond_m) of the newest look around while tracking
-        self._last_look = ((), 0.0)
+        self._last_look = ((), None)
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
@@ -358,7 +360,7 @@ class Conductor:
         self._alternatives = []
         self._alternatives_map = self._merge_wait_since_s = None
         self._rescans = 0
-        self._last_look = ((), 0.0)
+        self._last_look = ((), None)
         self._outside_by = 0.0
         self._room_unconfirmed = False
         self.exit_xy = self.goal_xy = None
@@ -630,7 +632,7 @@ class Conductor:
         if self.config.max_rooms == 1:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
-        self._last_look = ((), 0.0)
+        self._last_look = ((), None)
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
@@ -638,7 +640,9 @@ class Conductor:
     def _looked_around(self, t, obs):
         """Walls all round (but for the door come through), or the room's side walls going on
         past the door's wall: another room, whose exit is looked for from here, the door come
-        through out of the running; else out: done."""
+        through out of the running; else out: done. Walls all round with the room's side walls
+        ending at the door's wall stand beyond the building (a wall across the way out): out."""
+        cfg = self.config
         walls, side_m = ((tuple(obs.walls_around), obs.side_walls_beyond_m) if obs.walls_around
                          else self._last_look)
         if not len(walls):
@@ -647,17 +651,20 @@ class Conductor:
             return [Action(ActionKind.STOP)]
         opening = self._widest_opening(walls)
         seen = f"openings up to {opening:.0f} deg wide"
-        wide = opening > self.config.room_max_opening_deg
-        if wide:
-            if side_m < self.config.room_side_walls_min_m:
-                self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
-                                                     f"the room's side walls {side_m:.1f} m past "
-                                                     "the door's wall")
-                return [Action(ActionKind.STOP)]
-            # A blank wall ahead looks like open space; walls going on beside it do not.
-            seen += f", but the room's side walls go on {side_m:.1f} m past the door's wall"
+        wide = opening > cfg.room_max_opening_deg
+        walled_beside = side_m is not None and side_m >= cfg.room_side_walls_min_m
+        if side_m is None:
+            side = "no room outline to measure the room's side walls on"
+        elif walled_beside:
+            side = f"the room's side walls go on {side_m:.1f} m past the door's wall"
         else:
-            seen += f", the room's side walls {side_m:.1f} m past the door's wall"
+            side = f"the room's side walls end at the door's wall ({side_m:.1f} m past it)"
+        if not walled_beside and (wide or side_m is not None):
+            self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
+                                                 f"{'' if wide else 'but '}{side}")
+            return [Action(ActionKind.STOP)]
+        # A blank wall ahead looks like open space; walls going on beside it do not.
+        seen += f", {'but ' if wide else ''}{side}"
         if self.rooms >= self.config.max_rooms:
             kind = "another room" if wide else "walls all round"
             return self._give_up(t, f"{kind} beyond the exit ({seen}) after {self.rooms} rooms")

@@ -9,8 +9,8 @@ LOST waits for tracking to come back (motion stopped), RECOVER frees a robot tha
 inside an obstacle. Phases (000): initial scan -> wall scan -> find exit -> go to the exit -> pass
 through -> done, or gave up with the reason. Beyond an exit the robot looks around: the room's side
 walls going on past the door's wall, or walls all round where no room outline measures them, mean
-another room of the building (a partition's door), whose exit is found in turn; a room with no door but that one sends the robot
-back to the room before's next candidate.
+another room of the building (a partition's door), whose exit is found in turn; a room with no
+door but that one sends the robot back to the room before's next candidate.
 """
 import dataclasses
 import enum
@@ -653,10 +653,11 @@ class Conductor:
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
 
     def _looked_around(self, t, obs):
-        """Walls all round (but for the door come through), or the room's side walls going on
-        past the door's wall: another room, whose exit is looked for from here, the door come
-        through out of the running; else out: done. Walls all round with the room's side walls
-        ending at the door's wall stand beyond the building (a wall across the way out): out."""
+        """The room's side walls going on past the door's wall, or walls all round (but for the
+        door come through) where no outline measures the side walls: another room, whose exit
+        is looked for from here, the door come through out of the running; else out: done.
+        Walls all round with the side walls ending at the door's wall stand beyond the building
+        (a wall across the way out): out."""
         cfg = self.config
         walls, side_m = ((tuple(obs.walls_around), obs.side_walls_beyond_m) if obs.walls_around
                          else self._last_look)

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, Phase,
-                                  RoomOutlines, ScanRunner, ScanRunnerConfig, State, take_off)
+                                  ScanRunner, ScanRunnerConfig, State, take_off)
 from sparse_nav.scanning import Step
 
 
@@ -1224,14 +1224,3 @@ def test_an_interrupted_step_is_done_again_when_the_scan_goes_on():
     assert runner.succeeded == [a, b, c]
     runner.interrupt()  # nothing in progress: nothing to redo
     assert runner.done
-
-
-def test_a_room_outline_holds_in_the_slam_map_it_was_drawn_in_and_no_other():
-    outlines = RoomOutlines()
-    square = [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)]
-    outlines.drawn(0, square)
-    # Lost, a new map 1: nothing drawn there. Merged back into map 0: its outline holds again.
-    assert outlines.in_map(1) == ()
-    assert outlines.in_map(0) == tuple(square)
-    outlines.drawn(0, [])  # the finder drew none this time: the old one is gone
-    assert outlines.in_map(0) == ()

@@ -64,21 +64,6 @@ class Action:
     payload: object = None
 
 
-class RoomOutlines:
-    """The exit finder's room outline per SLAM map index. An outline is drawn in its own map's
-    frame: it holds again once tracking is back in that map (a merge back after a loss), and
-    in no other."""
-
-    def __init__(self):
-        self._by_map = {}
-
-    def drawn(self, map_index, outline):
-        self._by_map[map_index] = tuple(outline)
-
-    def in_map(self, map_index):
-        return self._by_map.get(map_index, ())
-
-
 @dataclasses.dataclass
 class Observation:
     """What the conductor knows at one tick; the node fills it from its topics."""

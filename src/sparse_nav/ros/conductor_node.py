@@ -16,7 +16,7 @@ from nav_msgs.msg import OccupancyGrid
 from std_srvs.srv import Trigger, TriggerResponse
 
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, Phase,
-                                  RoomOutlines, ScanRunner, ScanRunnerConfig, take_off)
+                                  ScanRunner, ScanRunnerConfig, take_off)
 from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
 from sparse_nav.msg import ConductorState, MotionStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
@@ -72,7 +72,6 @@ class ConductorNode:
         self.conductor = Conductor(self.config)
         self.lock = threading.Lock()
         self.obs = Observation(time_s=0.0)
-        self.outlines = RoomOutlines()
         self.requests = {"start": self.auto_start, "stop": False, "return": False}
         self.grid = None
         self.took_off = False
@@ -126,7 +125,7 @@ class ConductorNode:
             lost = msg.state == SlamState.LOST  # not initialised is no loss
             previous = self.obs.slam_map_index
             if msg.map_index != previous:
-                self.obs.room_outline = self.outlines.in_map(msg.map_index)
+                self.obs.room_outline = ()  # drawn in the previous map's frame
                 if previous is not None and not lost and not self.obs.tracking_lost:
                     # No loss in between: SLAM merged the map (or the bridge re-anchored it).
                     self.obs.slam_merges += ((previous, msg.map_index),)
@@ -297,7 +296,6 @@ class ConductorNode:
                 self.obs.exit_answered = True
                 if map_index == self.obs.slam_map_index:
                     self.obs.room_outline = outline
-                    self.outlines.drawn(map_index, outline)
         self.exit_thread = threading.Thread(target=call, daemon=True)
         self.exit_thread.start()
 

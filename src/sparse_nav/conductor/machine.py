@@ -666,7 +666,7 @@ class Conductor:
             return [Action(ActionKind.STOP)]
         # A blank wall ahead looks like open space; walls going on beside it do not.
         seen += f", {'but ' if wide else ''}{side}"
-        if self.rooms >= self.config.max_rooms:
+        if self.rooms >= cfg.max_rooms:
             kind = "another room" if wide else "walls all round"
             return self._give_up(t, f"{kind} beyond the exit ({seen}) after {self.rooms} rooms")
         if self._door_xy is not None:
@@ -679,7 +679,7 @@ class Conductor:
         self._exit_viewpoint = "robot"
         self._exit_attempts = 0
         return self._ask_exit(t, f"another room beyond the exit ({seen}): find its exit "
-                                 f"({self.rooms}/{self.config.max_rooms})")
+                                 f"({self.rooms}/{cfg.max_rooms})")
 
     def _find_exit(self, t, obs):
         cfg = self.config

@@ -4,45 +4,15 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <sstream>
 #include <stdexcept>
-#include <unordered_map>
 
-#include <pcl/filters/voxel_grid.h>
-#include <pcl/point_cloud.h>
-#include <pcl/point_types.h>
-
+#include "radix_sort.h"
 #include "spatial_hash.h"
 
 namespace sparse_nav
 {
 namespace
 {
-pcl::PointCloud<pcl::PointXYZ>::Ptr toPcl(const PointList& points)
-{
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  cloud->points.resize(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i)
-  {
-    cloud->points[i].x = points[i].x();
-    cloud->points[i].y = points[i].y();
-    cloud->points[i].z = points[i].z();
-  }
-  cloud->width = static_cast<std::uint32_t>(points.size());
-  cloud->height = 1;
-  cloud->is_dense = true;
-  return cloud;
-}
-
-void appendFromPcl(const pcl::PointCloud<pcl::PointXYZ>& cloud, PointList& out)
-{
-  out.reserve(out.size() + cloud.size());
-  for (const auto& p : cloud.points)
-  {
-    out.emplace_back(p.x, p.y, p.z);
-  }
-}
-
 /// The points whose keep flag is set, in their order.
 PointList keptPoints(const PointList& points, const std::vector<char>& keep)
 {
@@ -143,61 +113,203 @@ DensityFilter::DensityFilter(const DensityFilterConfig& config) : config_(config
 
 PointList DensityFilter::apply(const PointList& points, DensityFilterStats* stats) const
 {
+  return keptPoints(points, keepFlags(points, stats));
+}
+
+std::vector<char> DensityFilter::keepFlags(const PointList& points, DensityFilterStats* stats) const
+{
   DensityFilterStats s;
   s.n_in = points.size();
-  PointList out;
+  std::vector<char> keep;
   if (config_.method == DensityMethod::kNone || config_.min_neighbors == 0 || points.empty())
   {
-    out = points;
+    keep.assign(points.size(), 1);
   }
   else if (config_.method == DensityMethod::kIpcl)
   {
-    out = applyIpcl(points, &s);
+    keep = ipclFlags(points, &s);
+    s.n_counted = points.size();
   }
   else
   {
-    out = applyRadiusOutlier(points);
+    // PCL's RadiusOutlierRemoval rule (keep points with >= min_neighbors others within radius_m),
+    // counted in a uniform hash that stops at min_neighbors: a k-d tree radius search returns every
+    // neighbour, which in dense clouds costs ten times more.
+    const SpatialHash3 hash(config_.radius_m, points);
+    keep = hash.hasNeighbours(points, static_cast<float>(config_.radius_m), static_cast<std::size_t>(config_.min_neighbors));
     s.rounds_run = 1;
+    s.n_counted = points.size();
   }
-  s.n_out = out.size();
+  s.n_out = static_cast<std::size_t>(std::count(keep.begin(), keep.end(), 1));
   if (stats)
   {
     *stats = s;
   }
-  return out;
+  return keep;
 }
 
-PointList DensityFilter::applyRadiusOutlier(const PointList& points) const
+std::vector<char> DensityFilter::keepFlagsUpdated(const PointList& points, const std::vector<std::int32_t>& previous_index,
+                                                  const PointList& previous_points, const std::vector<char>& previous_keep,
+                                                  DensityFilterStats* stats) const
 {
-  // PCL's RadiusOutlierRemoval rule (keep points with >= min_neighbors others within radius_m),
-  // counted in a uniform hash that stops at min_neighbors: a k-d tree radius search returns every
-  // neighbour, which in dense clouds costs ten times more.
-  const SpatialHash3 hash(config_.radius_m, points);
-  const std::vector<char> keep = hash.hasNeighbours(points, static_cast<float>(config_.radius_m),
-                                                    static_cast<std::size_t>(config_.min_neighbors));
-  return keptPoints(points, keep);
+  const bool consistent = previous_index.size() == points.size() && previous_keep.size() == previous_points.size();
+  if (!consistent || config_.method != DensityMethod::kRadiusOutlier || config_.min_neighbors == 0)
+  {
+    return keepFlags(points, stats);
+  }
+  // Cells of radius_m: a point's neighbours lie in the 27 cells around its own. The points that
+  // entered or left mark their cells; only points in the 27 cells around a marked one can change
+  // their count, and those counts need the points of the 125 cells around.
+  const double inv = 1.0 / config_.radius_m;
+  constexpr std::int64_t kHalf = std::int64_t{ 1 } << 20;
+  auto cellOf = [inv](const Eigen::Vector3f& p) {
+    return Eigen::Array3d(std::floor(p.x() * inv), std::floor(p.y() * inv), std::floor(p.z() * inv));
+  };
+  auto packed = [](const Eigen::Array3d& c) {
+    return static_cast<std::uint64_t>(static_cast<std::int64_t>(c.x()) + kHalf) << 42 |
+           static_cast<std::uint64_t>(static_cast<std::int64_t>(c.y()) + kHalf) << 21 |
+           static_cast<std::uint64_t>(static_cast<std::int64_t>(c.z()) + kHalf);
+  };
+  std::vector<Eigen::Array3d> marked;
+  std::vector<char> referenced(previous_points.size(), 0);
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    const std::int32_t k = previous_index[i];
+    if (k < 0 || static_cast<std::size_t>(k) >= previous_points.size() || referenced[static_cast<std::size_t>(k)])
+    {
+      if (k >= 0)
+      {
+        return keepFlags(points, stats);  // not a correspondence
+      }
+      marked.push_back(cellOf(points[i]));
+    }
+    else
+    {
+      referenced[static_cast<std::size_t>(k)] = 1;
+    }
+  }
+  for (std::size_t k = 0; k < previous_points.size(); ++k)
+  {
+    if (!referenced[k])
+    {
+      marked.push_back(cellOf(previous_points[k]));
+    }
+  }
+  std::vector<char> keep(points.size(), 0);
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    keep[i] = previous_index[i] >= 0 ? previous_keep[static_cast<std::size_t>(previous_index[i])] : 0;
+  }
+  DensityFilterStats s;
+  s.n_in = points.size();
+  s.rounds_run = 1;
+  if (!marked.empty())
+  {
+    Eigen::Array3d lo = marked.front(), hi = lo;
+    for (const auto& c : marked)
+    {
+      lo = lo.min(c);
+      hi = hi.max(c);
+    }
+    if ((lo.abs().maxCoeff() + 2.0) >= static_cast<double>(kHalf) || (hi.abs().maxCoeff() + 2.0) >= static_cast<double>(kHalf))
+    {
+      return keepFlags(points, stats);
+    }
+    FlatKeySet near1, near2;
+    for (const auto& c : marked)
+    {
+      for (int dx = -2; dx <= 2; ++dx)
+      {
+        for (int dy = -2; dy <= 2; ++dy)
+        {
+          for (int dz = -2; dz <= 2; ++dz)
+          {
+            const std::uint64_t key = packed(c + Eigen::Array3d(dx, dy, dz));
+            near2.insert(key);
+            if (std::abs(dx) <= 1 && std::abs(dy) <= 1 && std::abs(dz) <= 1)
+            {
+              near1.insert(key);
+            }
+          }
+        }
+      }
+    }
+    lo -= 2.0;
+    hi += 2.0;
+    PointList support;
+    std::vector<std::size_t> support_index;
+    std::vector<char> recount;
+    for (std::size_t i = 0; i < points.size(); ++i)
+    {
+      const Eigen::Array3d c = cellOf(points[i]);
+      if ((c < lo).any() || (c > hi).any() || !near2.contains(packed(c)))
+      {
+        continue;
+      }
+      support.push_back(points[i]);
+      support_index.push_back(i);
+      recount.push_back(near1.contains(packed(c)) ? 1 : 0);
+    }
+    const SpatialHash3 hash(config_.radius_m, support);
+    const std::vector<char> counted =
+        hash.hasNeighbours(support, static_cast<float>(config_.radius_m), static_cast<std::size_t>(config_.min_neighbors));
+    for (std::size_t j = 0; j < support.size(); ++j)
+    {
+      if (recount[j])
+      {
+        keep[support_index[j]] = counted[j];
+        ++s.n_counted;
+      }
+    }
+  }
+  s.n_out = static_cast<std::size_t>(std::count(keep.begin(), keep.end(), 1));
+  if (stats)
+  {
+    *stats = s;
+  }
+  return keep;
 }
 
-PointList DensityFilter::applyIpcl(const PointList& points, DensityFilterStats* stats) const
+std::vector<char> DensityFilter::ipclFlags(const PointList& points, DensityFilterStats* stats) const
 {
   const double r = config_.radius_m;
+  std::vector<char> keep(points.size(), 1);
+  std::vector<std::size_t> alive_index(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    alive_index[i] = i;
+  }
   PointList alive = points;
   for (int round = 0; round < config_.ipcl_rounds && !alive.empty(); ++round)
   {
     ++stats->rounds_run;
     const SpatialHash3 hash(r, alive);
-    const std::vector<char> keep =
+    const std::vector<char> round_keep =
         hash.hasNeighbours(alive, static_cast<float>(r), static_cast<std::size_t>(config_.min_neighbors));
-    const std::size_t n_keep = static_cast<std::size_t>(std::count(keep.begin(), keep.end(), 1));
+    const std::size_t n_keep = static_cast<std::size_t>(std::count(round_keep.begin(), round_keep.end(), 1));
     if (n_keep == alive.size())
     {
       break;
     }
-    alive = keptPoints(alive, keep);
+    PointList next;
+    std::vector<std::size_t> next_index;
+    for (std::size_t j = 0; j < alive.size(); ++j)
+    {
+      if (round_keep[j])
+      {
+        next.push_back(alive[j]);
+        next_index.push_back(alive_index[j]);
+      }
+      else
+      {
+        keep[alive_index[j]] = 0;
+      }
+    }
+    alive.swap(next);
+    alive_index.swap(next_index);
   }
-  return alive;
+  return keep;
 }
-
 
 void VoxelFilterConfig::validate() const
 {
@@ -207,6 +319,150 @@ void VoxelFilterConfig::validate() const
   }
 }
 
+IncrementalVoxelGrid::IncrementalVoxelGrid(const VoxelFilterConfig& config) : config_((config.validate(), config))
+{
+}
+
+IncrementalVoxelGrid::Key IncrementalVoxelGrid::keyOf(const Eigen::Vector3f& p) const
+{
+  const double inv = 1.0 / config_.leaf_size_m;
+  return Key{ static_cast<std::int64_t>(std::floor(static_cast<double>(p.z()) * inv)),
+              static_cast<std::int64_t>(std::floor(static_cast<double>(p.y()) * inv)),
+              static_cast<std::int64_t>(std::floor(static_cast<double>(p.x()) * inv)) };
+}
+
+void IncrementalVoxelGrid::clear()
+{
+  voxels_.clear();
+  centroids_.clear();
+  previous_index_.clear();
+  n_dropped_ = 0;
+  n_unknown_removals_ = 0;
+}
+
+void IncrementalVoxelGrid::update(const PointList& added, const PointList& removed)
+{
+  std::vector<Change> changes;
+  changes.reserve(added.size() + removed.size());
+  for (const auto& p : removed)
+  {
+    changes.push_back(Change{ keyOf(p), p, -1 });
+  }
+  for (const auto& p : added)
+  {
+    changes.push_back(Change{ keyOf(p), p, +1 });
+  }
+  // The changes in voxel order: one radix sort of (packed key, index) when the batch's voxel
+  // indices, offset to its minimum, pack into 64 bits (always, short of a cloud 10^6 leaves wide
+  // on every axis); a comparison sort otherwise.
+  std::vector<std::uint32_t> order(changes.size());
+  if (!changes.empty())
+  {
+    Key lo = changes.front().key, hi = lo;
+    for (const auto& c : changes)
+    {
+      lo = Key{ std::min(lo.z, c.key.z), std::min(lo.y, c.key.y), std::min(lo.x, c.key.x) };
+      hi = Key{ std::max(hi.z, c.key.z), std::max(hi.y, c.key.y), std::max(hi.x, c.key.x) };
+    }
+    auto bits = [](std::int64_t span) {
+      int b = 0;
+      while (b < 63 && (span >> b) != 0)
+      {
+        ++b;
+      }
+      return b;
+    };
+    const int bx = bits(hi.x - lo.x), by = bits(hi.y - lo.y), bz = bits(hi.z - lo.z);
+    if (bx + by + bz <= 64)
+    {
+      std::vector<std::pair<std::uint64_t, std::uint32_t>> packed(changes.size());
+      for (std::size_t i = 0; i < changes.size(); ++i)
+      {
+        const Key& k = changes[i].key;
+        const std::uint64_t z = static_cast<std::uint64_t>(k.z - lo.z), y = static_cast<std::uint64_t>(k.y - lo.y),
+                            x = static_cast<std::uint64_t>(k.x - lo.x);
+        packed[i] = { (bz == 0 ? 0 : z << (bx + by)) | (by == 0 ? 0 : y << bx) | x, static_cast<std::uint32_t>(i) };
+      }
+      radixSortBy(packed, [](const std::pair<std::uint64_t, std::uint32_t>& e) { return e.first; });
+      for (std::size_t i = 0; i < packed.size(); ++i)
+      {
+        order[i] = packed[i].second;
+      }
+    }
+    else
+    {
+      for (std::size_t i = 0; i < order.size(); ++i)
+      {
+        order[i] = static_cast<std::uint32_t>(i);
+      }
+      std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return changes[a].key < changes[b].key; });
+    }
+    // One gather, so that the merge below reads the changes in sequence.
+    std::vector<Change> sorted(changes.size());
+    for (std::size_t i = 0; i < order.size(); ++i)
+    {
+      sorted[i] = changes[order[i]];
+    }
+    changes.swap(sorted);
+  }
+
+  std::vector<Voxel> voxels;
+  PointList centroids;
+  std::vector<std::int32_t> previous;
+  voxels.reserve(voxels_.size() + changes.size());
+  centroids.reserve(voxels.capacity());
+  previous.reserve(voxels.capacity());
+  n_dropped_ = 0;
+  n_unknown_removals_ = 0;
+  std::size_t i = 0, j = 0;
+  while (i < voxels_.size() || j < changes.size())
+  {
+    if (j == changes.size() || (i < voxels_.size() && voxels_[i].key < changes[j].key))
+    {
+      voxels.push_back(voxels_[i]);
+      centroids.push_back(centroids_[i]);
+      previous.push_back(static_cast<std::int32_t>(i));
+      ++i;
+      continue;
+    }
+    const Key key = changes[j].key;
+    const bool existed = i < voxels_.size() && voxels_[i].key == key;
+    Voxel v = existed ? voxels_[i++] : Voxel{ key, 0.0, 0.0, 0.0, 0 };
+    std::size_t k = j;
+    std::int64_t n_removed = 0;
+    for (; k < changes.size() && changes[k].key == key; ++k)
+    {
+      n_removed += changes[k].sign < 0 ? 1 : 0;
+    }
+    // More removals than points held: the caller removed points it never added; ignore them all.
+    const bool ignore_removals = n_removed > v.n;
+    for (; j < k; ++j)
+    {
+      const Change& c = changes[j];
+      if (c.sign < 0 && ignore_removals)
+      {
+        ++n_unknown_removals_;
+        continue;
+      }
+      v.sx += c.sign * static_cast<double>(c.p.x());
+      v.sy += c.sign * static_cast<double>(c.p.y());
+      v.sz += c.sign * static_cast<double>(c.p.z());
+      v.n += c.sign;
+    }
+    n_dropped_ += existed ? 1 : 0;
+    if (v.n > 0)
+    {
+      const double n = static_cast<double>(v.n);
+      voxels.push_back(v);
+      centroids.emplace_back(static_cast<float>(v.sx / n), static_cast<float>(v.sy / n), static_cast<float>(v.sz / n));
+      previous.push_back(-1);
+    }
+  }
+  voxels_.swap(voxels);
+  centroids_.swap(centroids);
+  previous_index_.swap(previous);
+}
+
 VoxelFilter::VoxelFilter(const VoxelFilterConfig& config) : config_(config)
 {
   config_.validate();
@@ -214,81 +470,14 @@ VoxelFilter::VoxelFilter(const VoxelFilterConfig& config) : config_(config)
 
 PointList VoxelFilter::apply(const PointList& points, VoxelFilterStats* stats) const
 {
-  VoxelFilterStats s;
-  s.n_in = points.size();
-  PointList out;
-  if (points.empty())
-  {
-    s.n_chunks = 0;
-    if (stats)
-    {
-      *stats = s;
-    }
-    return out;
-  }
-  const double leaf = config_.leaf_size_m;
-  Eigen::Vector3d lo = points.front().cast<double>();
-  Eigen::Vector3d hi = lo;
-  for (const auto& p : points)
-  {
-    lo = lo.cwiseMin(p.cast<double>());
-    hi = hi.cwiseMax(p.cast<double>());
-  }
-  // The same count PCL makes: (floor(max / leaf) - floor(min / leaf) + 1) per axis, in doubles.
-  double n_voxels = 1.0;
-  for (int a = 0; a < 3; ++a)
-  {
-    n_voxels *= std::floor(hi[a] / leaf) - std::floor(lo[a] / leaf) + 1.0;
-  }
-  const pcl::PointCloud<pcl::PointXYZ>::Ptr all = toPcl(points);
-  pcl::VoxelGrid<pcl::PointXYZ> grid;
-  grid.setLeafSize(static_cast<float>(leaf), static_cast<float>(leaf), static_cast<float>(leaf));
-  // PCL's limit, with a margin for its float arithmetic.
-  const double limit = 0.5 * static_cast<double>(std::numeric_limits<std::int32_t>::max());
-  if (n_voxels <= limit)
-  {
-    pcl::PointCloud<pcl::PointXYZ> filtered;
-    grid.setInputCloud(all);
-    grid.filter(filtered);
-    appendFromPcl(filtered, out);
-  }
-  else
-  {
-    // Blocks of 1024^3 voxels, aligned to leaf multiples so no voxel straddles two blocks.
-    s.overflow_guarded = true;
-    const double block = 1024.0;
-    std::unordered_map<CellKey, std::vector<int>, CellKeyHash> blocks;
-    for (std::size_t i = 0; i < points.size(); ++i)
-    {
-      const Eigen::Vector3d p = points[i].cast<double>();
-      CellKey key{ static_cast<std::int64_t>(std::floor(std::floor(p.x() / leaf) / block)),
-                   static_cast<std::int64_t>(std::floor(std::floor(p.y() / leaf) / block)),
-                   static_cast<std::int64_t>(std::floor(std::floor(p.z() / leaf) / block)) };
-      blocks[key].push_back(static_cast<int>(i));
-    }
-    s.n_chunks = blocks.size();
-    pcl::PointCloud<pcl::PointXYZ>::Ptr part(new pcl::PointCloud<pcl::PointXYZ>);
-    pcl::PointCloud<pcl::PointXYZ> filtered;
-    for (const auto& entry : blocks)
-    {
-      part->points.clear();
-      for (int i : entry.second)
-      {
-        part->points.push_back(all->points[static_cast<std::size_t>(i)]);
-      }
-      part->width = static_cast<std::uint32_t>(part->points.size());
-      part->height = 1;
-      grid.setInputCloud(part);
-      grid.filter(filtered);
-      appendFromPcl(filtered, out);
-    }
-  }
-  s.n_out = out.size();
+  IncrementalVoxelGrid grid(config_);
+  grid.update(points, PointList());
   if (stats)
   {
-    *stats = s;
+    stats->n_in = points.size();
+    stats->n_out = grid.centroids().size();
   }
-  return out;
+  return grid.centroids();
 }
 
 }  // namespace sparse_nav

@@ -1,6 +1,7 @@
 #include "sparse_nav/core/grid_pipeline.h"
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -54,8 +55,16 @@ GridPipeline::GridPipeline(const GridPipelineConfig& config)
 
 GridPipeline::~GridPipeline() = default;
 
+void GridPipeline::forgetLastCloud()
+{
+  voxel_.clear();
+  last_points_.clear();
+  ground_saw_last_cloud_ = false;
+}
+
 void GridPipeline::reset()
 {
+  forgetLastCloud();
   ground_.reset();
   builder_.reset();
 }
@@ -76,17 +85,39 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       p *= s;
     }
     timer.lap("guard");
+    // SLAM map points keep their place in the list between updates (new ones come at the end), so
+    // the points that differ at the same index are the ones that moved: only they change voxels.
+    PointList added, removed;
+    std::vector<std::int32_t> previous_index(points.size(), -1);
+    const std::size_t common = std::min(points.size(), last_points_.size());
+    for (std::size_t i = 0; i < common; ++i)
+    {
+      if (points[i] == last_points_[i])
+      {
+        previous_index[i] = static_cast<std::int32_t>(i);
+      }
+      else
+      {
+        removed.push_back(last_points_[i]);
+        added.push_back(points[i]);
+      }
+    }
+    removed.insert(removed.end(), last_points_.begin() + static_cast<std::ptrdiff_t>(common), last_points_.end());
+    added.insert(added.end(), points.begin() + static_cast<std::ptrdiff_t>(common), points.end());
+    last_points_ = points;
+    r.n_changed_points = added.size();
+    r.voxel.n_in = points.size();
     if (config_.voxel_enabled)
     {
-      points = voxel_.apply(points, &r.voxel);
+      voxel_.update(added, removed);
+      points = voxel_.centroids();
+      previous_index = voxel_.previousIndex();
     }
-    else
-    {
-      r.voxel.n_in = r.voxel.n_out = points.size();
-    }
+    r.voxel.n_out = points.size();
     timer.lap("voxel");
     if (points.empty())
     {
+      ground_saw_last_cloud_ = false;
       r.status = "empty cloud: no points left after the guard and the voxel grid (" + std::to_string(r.guard.n_non_finite) +
                  " non-finite, " + std::to_string(r.guard.n_out_of_range) + " out of range)";
       r.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -97,7 +128,9 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     {
       cameras.push_back(c.cast<double>() * config_.metres_per_unit);
     }
-    const GroundMapperResult g = ground_.process(points, cameras);
+    const bool continues = ground_saw_last_cloud_;
+    ground_saw_last_cloud_ = true;
+    const GroundMapperResult g = ground_.process(points, cameras, continues ? &previous_index : nullptr);
     for (const auto& kv : g.stages_ms)
     {
       r.stages_ms[kv.first] += kv.second;
@@ -137,11 +170,13 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
   }
   catch (const std::exception& e)
   {
+    forgetLastCloud();
     r.ok = false;
     r.status = std::string("pipeline error: ") + e.what();
   }
   catch (...)
   {
+    forgetLastCloud();
     r.ok = false;
     r.status = "pipeline error: unknown exception";
   }

@@ -234,13 +234,16 @@ void GroundMapper::reset()
 {
   has_floor_ = false;
   floor_ = FloorResult();
+  last_input_.clear();
+  last_keep_.clear();
   if (octree_)
   {
     octree_->clear();
   }
 }
 
-GroundMapperResult GroundMapper::process(const PointList& input, const std::vector<Eigen::Vector3d>& cameras)
+GroundMapperResult GroundMapper::process(const PointList& input, const std::vector<Eigen::Vector3d>& cameras,
+                                         const std::vector<std::int32_t>* previous_index)
 {
   GroundMapperResult r;
   StageTimer timer(r.stages_ms);
@@ -266,6 +269,8 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     {
       r.floor = found;
       r.status = found.reason;
+      last_input_ = input;
+      last_keep_.clear();
       timer.lap("floor");
       return r;
     }
@@ -276,7 +281,20 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   }
   r.floor = floor_;
   timer.lap("floor");
-  const PointList points = density_.apply(input, &r.density);
+  std::vector<char> keep = previous_index && !last_keep_.empty()
+                               ? density_.keepFlagsUpdated(input, *previous_index, last_input_, last_keep_, &r.density)
+                               : density_.keepFlags(input, &r.density);
+  PointList points;
+  points.reserve(r.density.n_out);
+  for (std::size_t i = 0; i < input.size(); ++i)
+  {
+    if (keep[i])
+    {
+      points.push_back(input[i]);
+    }
+  }
+  last_input_ = input;
+  last_keep_ = std::move(keep);
   timer.lap("density");
 
   const FloorPlane& plane = floor_.plane;

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -15,6 +16,7 @@
 using sparse_nav::DensityFilter;
 using sparse_nav::DensityFilterConfig;
 using sparse_nav::DensityMethod;
+using sparse_nav::IncrementalVoxelGrid;
 using sparse_nav::PointGuard;
 using sparse_nav::PointGuardConfig;
 using sparse_nav::PointGuardStats;
@@ -280,19 +282,23 @@ TEST(DensityFilter, IpclOnAHundredThousandPointsKeepsClustersAndDropsStrays)
 
 TEST(VoxelFilter, AveragesPointsPerVoxel)
 {
-  PointList pts{ { 0.01f, 0.01f, 0.01f }, { 0.03f, 0.03f, 0.03f }, { 1.01f, 0.01f, 0.01f } };
+  PointList pts{ { 1.01f, 0.01f, 0.01f }, { 0.01f, 0.01f, 0.01f }, { 0.03f, 0.03f, 0.03f } };
   VoxelFilterConfig cfg;
   cfg.leaf_size_m = 0.1;
   VoxelFilterStats stats;
   const PointList out = VoxelFilter(cfg).apply(pts, &stats);
   ASSERT_EQ(out.size(), 2u);
-  EXPECT_FALSE(stats.overflow_guarded);
-  EXPECT_EQ(stats.n_chunks, 1u);
+  EXPECT_EQ(stats.n_in, 3u);
+  EXPECT_EQ(stats.n_out, 2u);
+  // Sorted by voxel index, x last: the voxel at x = 0 comes first.
+  EXPECT_TRUE(out[0].isApprox(Eigen::Vector3f(0.02f, 0.02f, 0.02f), 1e-6f)) << out[0].transpose();
+  EXPECT_TRUE(out[1].isApprox(pts[0], 1e-6f));
 }
 
-TEST(VoxelFilter, HugeExtentIsChunkedNotReturnedRaw)
+TEST(VoxelFilter, HugeExtentKeepsEveryVoxel)
 {
-  // 1e6 m in every axis with a 1 cm leaf: 1e24 voxels, far beyond PCL's int32 index.
+  // 1e6 m in every axis with a 1 cm leaf: 1e24 voxels, far beyond an int32 voxel index (PCL
+  // returned such clouds unfiltered) and beyond 21 bits per axis (the packed sort key).
   PointList pts;
   for (int i = 0; i < 50; ++i)
   {
@@ -305,10 +311,129 @@ TEST(VoxelFilter, HugeExtentIsChunkedNotReturnedRaw)
   cfg.leaf_size_m = 0.01;
   VoxelFilterStats stats;
   const PointList out = VoxelFilter(cfg).apply(pts, &stats);
-  EXPECT_TRUE(stats.overflow_guarded);
-  EXPECT_GT(stats.n_chunks, 1u);
   EXPECT_EQ(stats.n_in, pts.size());
   EXPECT_EQ(out.size(), 51u);  // pairs merged, nothing returned raw
+  EXPECT_TRUE(std::is_sorted(out.begin(), out.end(), [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) { return a.z() < b.z(); }));
+}
+
+TEST(IncrementalVoxelGrid, AnUpdateGivesTheCentroidsOfABuildFromScratch)
+{
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-3.0f, 3.0f);
+  PointList before(20000);
+  for (auto& p : before)
+  {
+    p = Eigen::Vector3f(u(rng), u(rng), u(rng) * 0.1f);
+  }
+  PointList after = before, added, removed;
+  std::normal_distribution<float> noise(0.0f, 0.03f);
+  for (std::size_t i = 0; i < after.size(); i += 50)
+  {
+    removed.push_back(after[i]);
+    after[i] += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+    added.push_back(after[i]);
+  }
+  for (int k = 0; k < 100; ++k)
+  {
+    after.emplace_back(u(rng) + 10.0f, u(rng), 0.0f);  // new voxels beyond the old ones
+    added.push_back(after.back());
+  }
+  VoxelFilterConfig cfg;
+  IncrementalVoxelGrid grid(cfg);
+  grid.update(before, {});
+  const PointList first = grid.centroids();
+  grid.update(added, removed);
+  const PointList scratch = VoxelFilter(cfg).apply(after);
+  ASSERT_EQ(grid.centroids().size(), scratch.size());
+  std::size_t same = 0, differ = 0;
+  for (std::size_t i = 0; i < scratch.size(); ++i)
+  {
+    differ += grid.centroids()[i] == scratch[i] ? 0 : 1;
+    const std::int32_t prev = grid.previousIndex()[i];
+    if (prev >= 0)
+    {
+      ASSERT_EQ(first[static_cast<std::size_t>(prev)], scratch[i]);
+      ++same;
+    }
+  }
+  EXPECT_EQ(differ, 0u);  // bit for bit: the double sums are exact
+  EXPECT_GT(same, scratch.size() / 2);
+  EXPECT_LT(same, scratch.size());
+  EXPECT_GT(grid.numDropped(), 0u);
+  EXPECT_EQ(grid.numUnknownRemovals(), 0u);
+}
+
+TEST(DensityFilter, AnUpdateCountsOnlyAroundTheChangedPointsAndKeepsWhatACountOfAllKeeps)
+{
+  // Clusters of a few points each, so that moving points flips their neighbours' flags.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 8.0f);
+  std::normal_distribution<float> spread(0.0f, 0.15f);
+  PointList before;
+  for (int c = 0; c < 400; ++c)
+  {
+    const Eigen::Vector3f centre(u(rng), u(rng), u(rng) * 0.25f);
+    const int n = 3 + c % 6;
+    for (int k = 0; k < n; ++k)
+    {
+      before.push_back(centre + Eigen::Vector3f(spread(rng), spread(rng), spread(rng)));
+    }
+  }
+  // The changed cloud: the first 40 points move into the corner region, 30 more appear there, and
+  // the points of the corner cluster are dropped; the rest keep their place.
+  PointList after;
+  std::vector<std::int32_t> previous_index;
+  for (std::size_t i = 0; i < before.size(); ++i)
+  {
+    if (before[i].x() < 1.0f && before[i].y() < 1.0f)
+    {
+      continue;
+    }
+    if (i < 40)
+    {
+      after.push_back(Eigen::Vector3f(u(rng) * 0.2f, u(rng) * 0.2f, 0.5f));
+      previous_index.push_back(-1);
+    }
+    else
+    {
+      after.push_back(before[i]);
+      previous_index.push_back(static_cast<std::int32_t>(i));
+    }
+  }
+  for (int k = 0; k < 30; ++k)
+  {
+    after.push_back(Eigen::Vector3f(u(rng) * 0.2f, u(rng) * 0.2f, 0.5f));
+    previous_index.push_back(-1);
+  }
+  const DensityFilter filter;
+  const std::vector<char> previous_keep = filter.keepFlags(before);
+  sparse_nav::DensityFilterStats full_stats, update_stats;
+  const std::vector<char> full = filter.keepFlags(after, &full_stats);
+  const std::vector<char> updated = filter.keepFlagsUpdated(after, previous_index, before, previous_keep, &update_stats);
+  ASSERT_EQ(updated.size(), full.size());
+  EXPECT_TRUE(updated == full);
+  EXPECT_EQ(update_stats.n_out, full_stats.n_out);
+  EXPECT_LT(update_stats.n_counted, after.size() / 2);
+  EXPECT_GT(update_stats.n_counted, 0u);
+  // A list that is not a correspondence (one previous point claimed twice) is counted whole.
+  std::vector<std::int32_t> twice = previous_index;
+  twice[1] = twice[0] = 100;
+  sparse_nav::DensityFilterStats whole;
+  EXPECT_TRUE(filter.keepFlagsUpdated(after, twice, before, previous_keep, &whole) == full);
+  EXPECT_EQ(whole.n_counted, after.size());
+}
+
+TEST(IncrementalVoxelGrid, RemovingPointsItNeverHeldIsCountedAndIgnored)
+{
+  IncrementalVoxelGrid grid;
+  grid.update({ { 0.01f, 0.01f, 0.01f } }, {});
+  grid.update({}, { { 5.0f, 5.0f, 5.0f }, { 0.02f, 0.02f, 0.02f }, { 0.03f, 0.01f, 0.01f } });
+  EXPECT_EQ(grid.numUnknownRemovals(), 3u);
+  ASSERT_EQ(grid.centroids().size(), 1u);
+  EXPECT_TRUE(grid.centroids()[0].isApprox(Eigen::Vector3f(0.01f, 0.01f, 0.01f)));
+  grid.update({}, { { 0.01f, 0.01f, 0.01f } });
+  EXPECT_TRUE(grid.centroids().empty());
+  EXPECT_EQ(grid.numDropped(), 1u);
 }
 
 TEST(VoxelFilter, EmptyCloud)

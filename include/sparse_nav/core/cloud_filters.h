@@ -2,7 +2,9 @@
 #define SPARSE_NAV_CORE_CLOUD_FILTERS_H
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "sparse_nav/core/types.h"
 
@@ -74,6 +76,7 @@ struct DensityFilterStats
   std::size_t n_in = 0;
   std::size_t n_out = 0;
   int rounds_run = 0;  ///< rounds actually run (IPCL stops early once nothing is removed)
+  std::size_t n_counted = 0;  ///< points whose neighbours were counted (fewer in an update)
 };
 
 /**
@@ -87,11 +90,22 @@ class DensityFilter
 public:
   explicit DensityFilter(const DensityFilterConfig& config = DensityFilterConfig());
   PointList apply(const PointList& points, DensityFilterStats* stats = nullptr) const;
+  /// @brief Per point, 1 when apply() keeps it.
+  std::vector<char> keepFlags(const PointList& points, DensityFilterStats* stats = nullptr) const;
+  /**
+   * @brief keepFlags(points), given the flags of an earlier cloud: with the radius rule only the
+   * points within radius_m of a point that changed are counted again (a neighbour count is local);
+   * IPCL's rounds cascade, so it counts every point again.
+   * @param previous_index per point, its index in previous_points when it is the same point, else -1
+   * @param previous_keep keepFlags(previous_points)
+   */
+  std::vector<char> keepFlagsUpdated(const PointList& points, const std::vector<std::int32_t>& previous_index,
+                                     const PointList& previous_points, const std::vector<char>& previous_keep,
+                                     DensityFilterStats* stats = nullptr) const;
   const DensityFilterConfig& config() const { return config_; }
 
 private:
-  PointList applyIpcl(const PointList& points, DensityFilterStats* stats) const;
-  PointList applyRadiusOutlier(const PointList& points) const;
+  std::vector<char> ipclFlags(const PointList& points, DensityFilterStats* stats) const;
 
   DensityFilterConfig config_;
 };
@@ -110,17 +124,75 @@ struct VoxelFilterStats
 {
   std::size_t n_in = 0;
   std::size_t n_out = 0;
-  std::size_t n_chunks = 1;      ///< PCL VoxelGrid calls; > 1 when the int32 index guard split the cloud
-  bool overflow_guarded = false; ///< true when the cloud's extent would overflow PCL's int32 voxel index
 };
 
 /**
- * @brief Voxel-grid downsampling with PCL VoxelGrid, guarded against its int32 index overflow.
+ * @brief The voxel centroids of a cloud, kept between calls so that a cloud that changed in a few
+ * points is updated in the voxels those points left or entered, and says which centroids are
+ * still the ones it gave before.
  *
- * PCL refuses (and returns the input unchanged) when (dx * dy * dz) voxels exceed INT32_MAX. This
- * class then splits the cloud into blocks of at most 1024^3 voxels aligned to multiples of the leaf,
- * downsamples each non-empty block with PCL, and reports it in VoxelFilterStats; the result is the
- * same set of voxel centroids PCL would give without the limit. Units are metres; any frame.
+ * PCL's VoxelGrid has no update: it sorts every point again, and its int32 voxel index overflows
+ * on wide clouds. Here each voxel keeps its count and the sums of its points in double: sums of
+ * floats of one voxel are exact in double, so removing a point undoes adding it and an update
+ * gives the centroids of a build from scratch, independent of the order of the points. Voxel
+ * indices are 64-bit: no extent overflows them. Centroids come sorted by voxel (z, then y, then x
+ * index), the order PCL gives. Units are metres; any frame.
+ */
+class IncrementalVoxelGrid
+{
+public:
+  explicit IncrementalVoxelGrid(const VoxelFilterConfig& config = VoxelFilterConfig());
+
+  /**
+   * @brief Adds and removes points. Each removed point must be one added before, exactly; points
+   * removed that no voxel holds are ignored and counted (n_unknown_removals).
+   */
+  void update(const PointList& added, const PointList& removed);
+  /// @brief Forgets every point.
+  void clear();
+
+  /// @brief One centroid per occupied voxel, sorted by voxel.
+  const PointList& centroids() const { return centroids_; }
+  /// @brief Per centroid: its index in centroids() before the last update when its voxel's points
+  /// are the same, else -1.
+  const std::vector<std::int32_t>& previousIndex() const { return previous_index_; }
+  /// @brief Centroids of the previous update that are gone or changed in the last one.
+  std::size_t numDropped() const { return n_dropped_; }
+  std::size_t numUnknownRemovals() const { return n_unknown_removals_; }
+  const VoxelFilterConfig& config() const { return config_; }
+
+private:
+  struct Key
+  {
+    std::int64_t z, y, x;
+    bool operator<(const Key& o) const { return z != o.z ? z < o.z : (y != o.y ? y < o.y : x < o.x); }
+    bool operator==(const Key& o) const { return z == o.z && y == o.y && x == o.x; }
+  };
+  struct Voxel
+  {
+    Key key;
+    double sx, sy, sz;
+    std::int64_t n;
+  };
+  struct Change
+  {
+    Key key;
+    Eigen::Vector3f p;
+    int sign;
+  };
+  Key keyOf(const Eigen::Vector3f& p) const;
+
+  VoxelFilterConfig config_;
+  std::vector<Voxel> voxels_;  // sorted by key, n > 0
+  PointList centroids_;
+  std::vector<std::int32_t> previous_index_;
+  std::size_t n_dropped_ = 0;
+  std::size_t n_unknown_removals_ = 0;
+};
+
+/**
+ * @brief Voxel-grid downsampling: each occupied voxel becomes the centroid of its points, sorted
+ * by voxel (an IncrementalVoxelGrid built from scratch). Units are metres; any frame.
  */
 class VoxelFilter
 {

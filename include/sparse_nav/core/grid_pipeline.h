@@ -41,6 +41,7 @@ struct GridPipelineResult
   bool ok = false;
   std::string status;  ///< summary, or what went wrong when !ok
   std::size_t n_points = 0;
+  std::size_t n_changed_points = 0;  ///< points not at the same place in the list as in the last cloud
   PointGuardStats guard;
   DensityFilterStats density;  ///< counts of GroundMapper's density filter
   VoxelFilterStats voxel;
@@ -62,8 +63,11 @@ struct GridPipelineResult
  * free space ray-cast from the cameras, floor/ceiling band removal, free-space filter), then
  * GridBuilder (alpha shapes and rasterisation, with dirty-tile incremental updates). The nodelets
  * cloud_filter (guard, voxel grid), ground_mapper and grid_builder run the same three stages. Calling process() again
- * with a changed cloud is an incremental update: the octree casts rays only for new points and the
- * grid recomputes only the tiles whose obstacles or rays changed. Never throws on bad data;
+ * with a changed cloud is an incremental update: the points that differ from the last cloud at the
+ * same place in the list (SLAM map points keep their order; new ones are appended) change only
+ * their voxels, the density filter counts again only around the voxels that changed, the octree
+ * casts rays only for new points and the grid recomputes only the tiles whose obstacles or rays
+ * changed. Each of these gives what a rebuild from scratch on the same cloud gives. Never throws on bad data;
  * problems are reported in the result.
  */
 class GridPipeline
@@ -92,9 +96,14 @@ public:
   const GridPipelineConfig& config() const { return config_; }
 
 private:
+  /// After an error midway: the next cloud is taken whole, not as a change of this one.
+  void forgetLastCloud();
+
   GridPipelineConfig config_;
   PointGuard guard_;
-  VoxelFilter voxel_;
+  IncrementalVoxelGrid voxel_;
+  PointList last_points_;  // the last cloud, guarded and scaled
+  bool ground_saw_last_cloud_ = false;  // GroundMapper's last input is voxel_'s last output
   GroundMapper ground_;
   GridBuilder builder_;
 };

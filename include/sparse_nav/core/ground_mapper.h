@@ -2,6 +2,7 @@
 #define SPARSE_NAV_CORE_GROUND_MAPPER_H
 
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
@@ -98,8 +99,12 @@ public:
    * @param input guarded (and voxel-filtered) cloud in the input frame [m], outliers included
    * @param cameras camera positions in the input frame [m]; rays start at the nearest one. Empty:
    *        the input frame's origin (the first ORB-SLAM camera).
+   * @param previous_index optional: per input point, its index in the previous call's input when
+   *        it is the same point, else -1 (IncrementalVoxelGrid::previousIndex). The density filter
+   *        then counts again only around the points that changed.
    */
-  GroundMapperResult process(const PointList& input, const std::vector<Eigen::Vector3d>& cameras);
+  GroundMapperResult process(const PointList& input, const std::vector<Eigen::Vector3d>& cameras,
+                             const std::vector<std::int32_t>* previous_index = nullptr);
 
   /// @brief Forgets the floor and the octree.
   void reset();
@@ -118,6 +123,8 @@ private:
   std::unique_ptr<OctreeMap> octree_;
   bool has_floor_ = false;
   FloorResult floor_;
+  PointList last_input_;          // the previous call's input
+  std::vector<char> last_keep_;   // its density flags; empty when the filter did not run on it
 };
 
 }  // namespace sparse_nav

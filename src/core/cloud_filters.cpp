@@ -342,27 +342,24 @@ void IncrementalVoxelGrid::clear()
 
 void IncrementalVoxelGrid::update(const PointList& added, const PointList& removed)
 {
-  std::vector<Change> changes;
-  changes.reserve(added.size() + removed.size());
-  for (const auto& p : removed)
-  {
-    changes.push_back(Change{ keyOf(p), p, -1 });
-  }
-  for (const auto& p : added)
-  {
-    changes.push_back(Change{ keyOf(p), p, +1 });
-  }
-  // The changes in voxel order: one radix sort of (packed key, index) when the batch's voxel
+  // Change c < removed.size() is a removal, the rest additions.
+  const std::size_t n_removed = removed.size(), n = n_removed + added.size();
+  auto pointOf = [&](std::size_t c) -> const Eigen::Vector3f& {
+    return c < n_removed ? removed[c] : added[c - n_removed];
+  };
+  // The changes in voxel order: one radix sort of (packed key, change) when the batch's voxel
   // indices, offset to its minimum, pack into 64 bits (always, short of a cloud 10^6 leaves wide
-  // on every axis); a comparison sort otherwise.
-  std::vector<std::uint32_t> order(changes.size());
-  if (!changes.empty())
+  // on every axis); a comparison sort otherwise. Keys are computed again where needed rather than
+  // stored: memory, not arithmetic, bounds this for 10^6 points.
+  std::vector<std::uint32_t> order(n);
+  if (n > 0)
   {
-    Key lo = changes.front().key, hi = lo;
-    for (const auto& c : changes)
+    Key lo = keyOf(pointOf(0)), hi = lo;
+    for (std::size_t c = 1; c < n; ++c)
     {
-      lo = Key{ std::min(lo.z, c.key.z), std::min(lo.y, c.key.y), std::min(lo.x, c.key.x) };
-      hi = Key{ std::max(hi.z, c.key.z), std::max(hi.y, c.key.y), std::max(hi.x, c.key.x) };
+      const Key k = keyOf(pointOf(c));
+      lo = Key{ std::min(lo.z, k.z), std::min(lo.y, k.y), std::min(lo.x, k.x) };
+      hi = Key{ std::max(hi.z, k.z), std::max(hi.y, k.y), std::max(hi.x, k.x) };
     }
     auto bits = [](std::int64_t span) {
       int b = 0;
@@ -375,49 +372,45 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
     const int bx = bits(hi.x - lo.x), by = bits(hi.y - lo.y), bz = bits(hi.z - lo.z);
     if (bx + by + bz <= 64)
     {
-      std::vector<std::pair<std::uint64_t, std::uint32_t>> packed(changes.size());
-      for (std::size_t i = 0; i < changes.size(); ++i)
+      std::vector<std::pair<std::uint64_t, std::uint32_t>> packed(n);
+      for (std::size_t c = 0; c < n; ++c)
       {
-        const Key& k = changes[i].key;
+        const Key k = keyOf(pointOf(c));
         const std::uint64_t z = static_cast<std::uint64_t>(k.z - lo.z), y = static_cast<std::uint64_t>(k.y - lo.y),
                             x = static_cast<std::uint64_t>(k.x - lo.x);
-        packed[i] = { (bz == 0 ? 0 : z << (bx + by)) | (by == 0 ? 0 : y << bx) | x, static_cast<std::uint32_t>(i) };
+        packed[c] = { (bz == 0 ? 0 : z << (bx + by)) | (by == 0 ? 0 : y << bx) | x, static_cast<std::uint32_t>(c) };
       }
       radixSortBy(packed, [](const std::pair<std::uint64_t, std::uint32_t>& e) { return e.first; });
-      for (std::size_t i = 0; i < packed.size(); ++i)
+      for (std::size_t c = 0; c < n; ++c)
       {
-        order[i] = packed[i].second;
+        order[c] = packed[c].second;
       }
     }
     else
     {
-      for (std::size_t i = 0; i < order.size(); ++i)
+      std::vector<Key> keys(n);
+      for (std::size_t c = 0; c < n; ++c)
       {
-        order[i] = static_cast<std::uint32_t>(i);
+        keys[c] = keyOf(pointOf(c));
+        order[c] = static_cast<std::uint32_t>(c);
       }
-      std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return changes[a].key < changes[b].key; });
+      std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
     }
-    // One gather, so that the merge below reads the changes in sequence.
-    std::vector<Change> sorted(changes.size());
-    for (std::size_t i = 0; i < order.size(); ++i)
-    {
-      sorted[i] = changes[order[i]];
-    }
-    changes.swap(sorted);
   }
 
   std::vector<Voxel> voxels;
   PointList centroids;
   std::vector<std::int32_t> previous;
-  voxels.reserve(voxels_.size() + changes.size());
+  voxels.reserve(voxels_.size() + added.size());
   centroids.reserve(voxels.capacity());
   previous.reserve(voxels.capacity());
   n_dropped_ = 0;
   n_unknown_removals_ = 0;
   std::size_t i = 0, j = 0;
-  while (i < voxels_.size() || j < changes.size())
+  Key next = n > 0 ? keyOf(pointOf(order[0])) : Key{ 0, 0, 0 };
+  while (i < voxels_.size() || j < n)
   {
-    if (j == changes.size() || (i < voxels_.size() && voxels_[i].key < changes[j].key))
+    if (j == n || (i < voxels_.size() && voxels_[i].key < next))
     {
       voxels.push_back(voxels_[i]);
       centroids.push_back(centroids_[i]);
@@ -425,36 +418,55 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
       ++i;
       continue;
     }
-    const Key key = changes[j].key;
+    const Key key = next;
     const bool existed = i < voxels_.size() && voxels_[i].key == key;
     Voxel v = existed ? voxels_[i++] : Voxel{ key, 0.0, 0.0, 0.0, 0 };
-    std::size_t k = j;
-    std::int64_t n_removed = 0;
-    for (; k < changes.size() && changes[k].key == key; ++k)
+    // Sums of this voxel's additions and removals: exact in double, so their order does not matter.
+    Eigen::Vector3d add = Eigen::Vector3d::Zero(), rem = Eigen::Vector3d::Zero();
+    std::int64_t n_add = 0, n_rem = 0;
+    do
     {
-      n_removed += changes[k].sign < 0 ? 1 : 0;
-    }
-    // More removals than points held: the caller removed points it never added; ignore them all.
-    const bool ignore_removals = n_removed > v.n;
-    for (; j < k; ++j)
-    {
-      const Change& c = changes[j];
-      if (c.sign < 0 && ignore_removals)
+      const std::uint32_t c = order[j];
+      const Eigen::Vector3d p = pointOf(c).cast<double>();
+      if (c < n_removed)
       {
-        ++n_unknown_removals_;
-        continue;
+        rem += p;
+        ++n_rem;
       }
-      v.sx += c.sign * static_cast<double>(c.p.x());
-      v.sy += c.sign * static_cast<double>(c.p.y());
-      v.sz += c.sign * static_cast<double>(c.p.z());
-      v.n += c.sign;
+      else
+      {
+        add += p;
+        ++n_add;
+      }
+      ++j;
+      if (j < n)
+      {
+        next = keyOf(pointOf(order[j]));
+      }
+    } while (j < n && next == key);
+    // More removals than points held: the caller removed points it never added; ignore them all.
+    if (n_rem > v.n)
+    {
+      n_unknown_removals_ += static_cast<std::size_t>(n_rem);
     }
+    else
+    {
+      v.sx -= rem.x();
+      v.sy -= rem.y();
+      v.sz -= rem.z();
+      v.n -= n_rem;
+    }
+    v.sx += add.x();
+    v.sy += add.y();
+    v.sz += add.z();
+    v.n += n_add;
     n_dropped_ += existed ? 1 : 0;
     if (v.n > 0)
     {
-      const double n = static_cast<double>(v.n);
+      const double count = static_cast<double>(v.n);
       voxels.push_back(v);
-      centroids.emplace_back(static_cast<float>(v.sx / n), static_cast<float>(v.sy / n), static_cast<float>(v.sz / n));
+      centroids.emplace_back(static_cast<float>(v.sx / count), static_cast<float>(v.sy / count),
+                             static_cast<float>(v.sz / count));
       previous.push_back(-1);
     }
   }

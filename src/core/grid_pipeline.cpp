@@ -103,13 +103,17 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       }
     }
     removed.insert(removed.end(), last_points_.begin() + static_cast<std::ptrdiff_t>(common), last_points_.end());
-    added.insert(added.end(), points.begin() + static_cast<std::ptrdiff_t>(common), points.end());
+    const bool all_new = common == 0;
+    if (!all_new)
+    {
+      added.insert(added.end(), points.begin() + static_cast<std::ptrdiff_t>(common), points.end());
+    }
     last_points_ = points;
-    r.n_changed_points = added.size();
+    r.n_changed_points = all_new ? points.size() : added.size();
     r.voxel.n_in = points.size();
     if (config_.voxel_enabled)
     {
-      voxel_.update(added, removed);
+      voxel_.update(all_new ? points : added, removed);
       points = voxel_.centroids();
       previous_index = voxel_.previousIndex();
     }

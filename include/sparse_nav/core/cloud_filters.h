@@ -174,12 +174,6 @@ private:
     double sx, sy, sz;
     std::int64_t n;
   };
-  struct Change
-  {
-    Key key;
-    Eigen::Vector3f p;
-    int sign;
-  };
   Key keyOf(const Eigen::Vector3f& p) const;
 
   VoxelFilterConfig config_;

@@ -351,7 +351,7 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
   // indices, offset to its minimum, pack into 64 bits (always, short of a cloud 10^6 leaves wide
   // on every axis); a comparison sort otherwise. Keys are computed again where needed rather than
   // stored: memory, not arithmetic, bounds this for 10^6 points.
-  std::vector<std::uint32_t> order(n);
+  std::vector<std::uint32_t> order;
   if (n > 0)
   {
     Key lo = keyOf(pointOf(0)), hi = lo;
@@ -381,6 +381,7 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
         packed[c] = { (bz == 0 ? 0 : z << (bx + by)) | (by == 0 ? 0 : y << bx) | x, static_cast<std::uint32_t>(c) };
       }
       radixSortBy(packed, [](const std::pair<std::uint64_t, std::uint32_t>& e) { return e.first; });
+      order.resize(n);
       for (std::size_t c = 0; c < n; ++c)
       {
         order[c] = packed[c].second;
@@ -389,6 +390,7 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
     else
     {
       std::vector<Key> keys(n);
+      order.resize(n);
       for (std::size_t c = 0; c < n; ++c)
       {
         keys[c] = keyOf(pointOf(c));

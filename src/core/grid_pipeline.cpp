@@ -7,6 +7,7 @@
 #include <exception>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 namespace sparse_nav
@@ -108,18 +109,19 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     {
       added.insert(added.end(), points.begin() + static_cast<std::ptrdiff_t>(common), points.end());
     }
-    last_points_ = points;
     r.n_changed_points = all_new ? points.size() : added.size();
     r.voxel.n_in = points.size();
     if (config_.voxel_enabled)
     {
       voxel_.update(all_new ? points : added, removed);
-      points = voxel_.centroids();
       previous_index = voxel_.previousIndex();
     }
-    r.voxel.n_out = points.size();
+    last_points_ = std::move(points);
+    // What goes on: the centroids, or the guarded cloud itself without the voxel grid.
+    const PointList& voxels = config_.voxel_enabled ? voxel_.centroids() : last_points_;
+    r.voxel.n_out = voxels.size();
     timer.lap("voxel");
-    if (points.empty())
+    if (voxels.empty())
     {
       ground_saw_last_cloud_ = false;
       r.status = "empty cloud: no points left after the guard and the voxel grid (" + std::to_string(r.guard.n_non_finite) +
@@ -134,7 +136,7 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     }
     const bool continues = ground_saw_last_cloud_;
     ground_saw_last_cloud_ = true;
-    const GroundMapperResult g = ground_.process(points, cameras, continues ? &previous_index : nullptr);
+    const GroundMapperResult g = ground_.process(voxels, cameras, continues ? &previous_index : nullptr);
     for (const auto& kv : g.stages_ms)
     {
       r.stages_ms[kv.first] += kv.second;
@@ -169,7 +171,7 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     r.ok = r.grid.ok;
     char buf[256];
     std::snprintf(buf, sizeof(buf), "%zu points -> %zu voxels -> %zu dense -> %zu obstacles (%zu in free space); floor tilt %.1f deg; %s",
-                  r.n_points, points.size(), g.density.n_out, r.n_obstacles, r.n_freed, g.floor.plane.tilt_deg, r.grid.status.c_str());
+                  r.n_points, voxels.size(), g.density.n_out, r.n_obstacles, r.n_freed, g.floor.plane.tilt_deg, r.grid.status.c_str());
     r.status = buf;
   }
   catch (const std::exception& e)

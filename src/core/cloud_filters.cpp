@@ -335,6 +335,8 @@ void IncrementalVoxelGrid::clear()
 {
   voxels_.clear();
   centroids_.clear();
+  spare_voxels_.clear();
+  spare_centroids_.clear();
   previous_index_.clear();
   n_dropped_ = 0;
   n_unknown_removals_ = 0;
@@ -400,9 +402,14 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
     }
   }
 
-  std::vector<Voxel> voxels;
-  PointList centroids;
-  std::vector<std::int32_t> previous;
+  // Written into the buffers of the update before last: reused pages, not fresh ones, which
+  // cost more than the merge itself.
+  std::vector<Voxel>& voxels = spare_voxels_;
+  PointList& centroids = spare_centroids_;
+  std::vector<std::int32_t>& previous = previous_index_;
+  voxels.clear();
+  centroids.clear();
+  previous.clear();
   voxels.reserve(voxels_.size() + added.size());
   centroids.reserve(voxels.capacity());
   previous.reserve(voxels.capacity());
@@ -414,10 +421,19 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
   {
     if (j == n || (i < voxels_.size() && voxels_[i].key < next))
     {
-      voxels.push_back(voxels_[i]);
-      centroids.push_back(centroids_[i]);
-      previous.push_back(static_cast<std::int32_t>(i));
-      ++i;
+      // The run of voxels no change reaches, copied whole.
+      const std::size_t end =
+          j == n ? voxels_.size()
+                 : static_cast<std::size_t>(std::lower_bound(voxels_.begin() + static_cast<std::ptrdiff_t>(i), voxels_.end(), next,
+                                                             [](const Voxel& v, const Key& k) { return v.key < k; }) -
+                                            voxels_.begin());
+      voxels.insert(voxels.end(), voxels_.begin() + static_cast<std::ptrdiff_t>(i), voxels_.begin() + static_cast<std::ptrdiff_t>(end));
+      centroids.insert(centroids.end(), centroids_.begin() + static_cast<std::ptrdiff_t>(i),
+                       centroids_.begin() + static_cast<std::ptrdiff_t>(end));
+      for (; i < end; ++i)
+      {
+        previous.push_back(static_cast<std::int32_t>(i));
+      }
       continue;
     }
     const Key key = next;
@@ -474,7 +490,6 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
   }
   voxels_.swap(voxels);
   centroids_.swap(centroids);
-  previous_index_.swap(previous);
 }
 
 VoxelFilter::VoxelFilter(const VoxelFilterConfig& config) : config_(config)

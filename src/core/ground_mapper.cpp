@@ -30,175 +30,6 @@ private:
   Clock::time_point last_;
 };
 
-/// The candidates (indices into xy) whose cell at least min_rays rays pass through at their height.
-/// Ray i runs from its camera (cam_xy, cam_h) to point i (xy, h); its own end cell does not count.
-/// Returns false, marking nothing, when the candidates' cells span more than clear_max_cells.
-bool passedThrough(const std::vector<Eigen::Vector2d>& xy, const std::vector<double>& h,
-                   const std::vector<Eigen::Vector2d>& cam_xy, const std::vector<double>& cam_h,
-                   const std::vector<std::size_t>& camera_of, const std::vector<std::size_t>& candidates,
-                   const GroundMapperConfig& config, std::vector<char>& passed)
-{
-  passed.assign(candidates.size(), 0);
-  if (candidates.empty())
-  {
-    return true;
-  }
-  const double cell = config.clear_cell_m;
-  // Cell indices stay within +-2^26: differences of them fit 16.16 fixed point in 64 bits, and a
-  // ray's end cell relative to the box, offset by 2^27, fits 32 bits per axis of a sort key.
-  constexpr double kMaxCell = 67108864.0;
-  constexpr int kCellOffset = 1 << 27;
-  auto inReach = [&](const Eigen::Vector2d& p) {
-    return p.allFinite() && std::abs(p.x() / cell) < kMaxCell && std::abs(p.y() / cell) < kMaxCell;
-  };
-  auto cellOf = [cell](const Eigen::Vector2d& p) {
-    return Eigen::Vector2i(static_cast<int>(std::floor(p.x() / cell)), static_cast<int>(std::floor(p.y() / cell)));
-  };
-  Eigen::Array2d lo_m = xy[candidates.front()].array(), hi_m = lo_m;
-  for (const std::size_t i : candidates)
-  {
-    lo_m = lo_m.min(xy[i].array());
-    hi_m = hi_m.max(xy[i].array());
-  }
-  const Eigen::Array2d span = (hi_m - lo_m) / cell + 1.0;
-  if (!inReach(lo_m.matrix()) || !inReach(hi_m.matrix()) ||
-      !(span.x() * span.y() <= static_cast<double>(config.clear_max_cells)))
-  {
-    return false;
-  }
-  const Eigen::Vector2i lo = cellOf(lo_m.matrix()), hi = cellOf(hi_m.matrix());
-  const Eigen::Vector2i size = hi - lo + Eigen::Vector2i::Ones();
-  auto index = [&](const Eigen::Vector2i& c) {
-    return static_cast<std::size_t>(c.y() - lo.y()) * size.x() + static_cast<std::size_t>(c.x() - lo.x());
-  };
-  // Per cell: from the tolerance below its lowest candidate up to its highest. Only rays under an
-  // obstacle's top count against it: rays over a box, or over the near part of its top towards
-  // the far part, do not say that it is not there.
-  const double tol = config.clear_height_tolerance_m;
-  const std::size_t n_cells = static_cast<std::size_t>(size.x()) * size.y();
-  std::vector<float> z_lo(n_cells, std::numeric_limits<float>::infinity());
-  std::vector<float> z_hi(n_cells, -std::numeric_limits<float>::infinity());
-  for (const std::size_t i : candidates)
-  {
-    const std::size_t k = index(cellOf(xy[i]));
-    z_lo[k] = std::min(z_lo[k], static_cast<float>(h[i] - tol));
-    z_hi[k] = std::max(z_hi[k], static_cast<float>(h[i]));
-  }
-  // Blocks of kBlock x kBlock cells, one block of margin around the box: a block is hot when it or
-  // a neighbour holds a candidate. The next kBlock cells of a ray stay within the 3 x 3 blocks
-  // around its current cell, so a ray skips them whole from a cold block: rays spend most of
-  // their length in open space, and walking every cell of 10^5 rays cost more than the octree.
-  constexpr int kBlock = 8;  // the walk below divides by it with >> 3
-  const int bw = (size.x() + kBlock - 1) / kBlock + 2, bh = (size.y() + kBlock - 1) / kBlock + 2;
-  std::vector<char> has(static_cast<std::size_t>(bw) * bh, 0), hot(has.size(), 0);
-  for (const std::size_t i : candidates)
-  {
-    const Eigen::Vector2i c = cellOf(xy[i]) - lo;
-    has[static_cast<std::size_t>(c.y() / kBlock + 1) * bw + c.x() / kBlock + 1] = 1;
-  }
-  for (int by = 1; by < bh - 1; ++by)
-  {
-    for (int bx = 1; bx < bw - 1; ++bx)
-    {
-      if (has[static_cast<std::size_t>(by) * bw + bx])
-      {
-        for (int y = by - 1; y <= by + 1; ++y)
-        {
-          std::fill_n(hot.begin() + static_cast<std::ptrdiff_t>(y) * bw + bx - 1, 3, 1);
-        }
-      }
-    }
-  }
-  // Rays from one camera to one end cell share their cells and differ only in height: walked once
-  // as a group, whose heights sorted give the count at a cell by two binary searches (a wall's
-  // cell holds points at many heights).
-  struct RayEnd
-  {
-    std::uint64_t camera, cell;
-    double h;
-  };
-  std::vector<RayEnd> ends;
-  ends.reserve(xy.size());
-  for (std::size_t i = 0; i < xy.size(); ++i)
-  {
-    if (inReach(cam_xy[camera_of[i]]) && inReach(xy[i]))
-    {
-      const Eigen::Vector2i e = cellOf(xy[i]) - lo + Eigen::Vector2i::Constant(kCellOffset);
-      ends.push_back(RayEnd{ camera_of[i], static_cast<std::uint64_t>(e.x()) << 32 | static_cast<std::uint32_t>(e.y()), h[i] });
-    }
-  }
-  radixSortBy(ends, [](const RayEnd& e) { return e.camera; });
-  radixSortBy(ends, [](const RayEnd& e) { return e.cell; });
-  std::vector<std::uint32_t> count(n_cells, 0);
-  std::vector<double> heights;
-  for (std::size_t g0 = 0, g1 = 0; g0 < ends.size(); g0 = g1)
-  {
-    heights.clear();
-    for (g1 = g0; g1 < ends.size() && ends[g1].camera == ends[g0].camera && ends[g1].cell == ends[g0].cell; ++g1)
-    {
-      heights.push_back(ends[g1].h);
-    }
-    std::sort(heights.begin(), heights.end());
-    const std::size_t c = ends[g0].camera;
-    const Eigen::Vector2i a = cellOf(cam_xy[c]) - lo;
-    const Eigen::Vector2i b(static_cast<int>(ends[g0].cell >> 32) - kCellOffset,
-                            static_cast<int>(ends[g0].cell & 0xffffffffu) - kCellOffset);
-    const int steps = std::max(std::abs(b.x() - a.x()), std::abs(b.y() - a.y()));
-    if (steps == 0)
-    {
-      continue;
-    }
-    // A digital line in 16.16 fixed point, one cell per step along the major axis. Cells in the
-    // last clear_range_margin of the ray may hold the same surface as its end; the end cell is its own.
-    std::int64_t fx = (static_cast<std::int64_t>(a.x()) << 16) + (1 << 15);
-    std::int64_t fy = (static_cast<std::int64_t>(a.y()) << 16) + (1 << 15);
-    const std::int64_t dfx = (static_cast<std::int64_t>(b.x() - a.x()) << 16) / steps;
-    const std::int64_t dfy = (static_cast<std::int64_t>(b.y() - a.y()) << 16) / steps;
-    const double h0 = cam_h[c];
-    const int last = std::min(steps - 1, static_cast<int>(std::floor((1.0 - config.clear_range_margin) * steps)));
-    for (int s = 0; s <= last;)
-    {
-      const int x = static_cast<int>(fx >> 16), y = static_cast<int>(fy >> 16);  // floors
-      const int bx = (x >> 3) + 1, by = (y >> 3) + 1;
-      if (bx < 0 || by < 0 || bx >= bw || by >= bh || !hot[static_cast<std::size_t>(by) * bw + bx])
-      {
-        s += kBlock;
-        fx += kBlock * dfx;
-        fy += kBlock * dfy;
-        continue;
-      }
-      if (x >= 0 && y >= 0 && x < size.x() && y < size.y())
-      {
-        const std::size_t k = static_cast<std::size_t>(y) * size.x() + static_cast<std::size_t>(x);
-        if (z_lo[k] <= z_hi[k])
-        {
-          // At fraction f of the way, a ray to height hp is at h0 + f (hp - h0): within the cell's
-          // range for hp in [h0 + (z_lo - h0) / f, h0 + (z_hi - h0) / f].
-          if (s == 0)
-          {
-            count[k] += (h0 >= z_lo[k] && h0 <= z_hi[k]) ? static_cast<std::uint32_t>(heights.size()) : 0;
-          }
-          else
-          {
-            const double f = static_cast<double>(s) / steps;
-            const auto from = std::lower_bound(heights.begin(), heights.end(), h0 + (z_lo[k] - h0) / f);
-            const auto to = std::upper_bound(from, heights.end(), h0 + (z_hi[k] - h0) / f);
-            count[k] += static_cast<std::uint32_t>(to - from);
-          }
-        }
-      }
-      ++s;
-      fx += dfx;
-      fy += dfy;
-    }
-  }
-  const std::uint32_t min_rays = static_cast<std::uint32_t>(config.clear_hit_min_rays);
-  for (std::size_t j = 0; j < candidates.size(); ++j)
-  {
-    passed[j] = count[index(cellOf(xy[candidates[j]]))] >= min_rays ? 1 : 0;
-  }
-  return true;
-}
 }  // namespace
 
 void GroundMapperConfig::validate() const
@@ -220,7 +51,11 @@ void GroundMapperConfig::validate() const
 }
 
 GroundMapper::GroundMapper(const GroundMapperConfig& config)
-  : config_((config.validate(), config)), detector_(config.floor), density_(config.density)
+  : config_((config.validate(), config))
+  , detector_(config.floor)
+  , density_(config.density)
+  , pass_count_(RayPassConfig{ config.clear_cell_m, config.clear_height_tolerance_m, config.clear_range_margin,
+                               config.clear_max_cells })
 {
   if (config_.octree_enabled)
   {
@@ -236,6 +71,8 @@ void GroundMapper::reset()
   floor_ = FloorResult();
   last_input_.clear();
   last_keep_.clear();
+  last_dense_of_input_.clear();
+  last_kind_.clear();
   if (octree_)
   {
     octree_->clear();
@@ -247,12 +84,14 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
 {
   GroundMapperResult r;
   StageTimer timer(r.stages_ms);
+  bool floor_moved = !has_floor_;
   if (!has_floor_ || !config_.keep_floor)
   {
     const FloorResult found = detector_.detect(input);
     if (found.found)
     {
       const bool moved = has_floor_ && (found.plane.normal != floor_.plane.normal || found.plane.d != floor_.plane.d);
+      floor_moved = floor_moved || moved;
       if (moved && config_.align_to_floor)
       {
         // The output frame follows the floor: what was built in the old one no longer fits.
@@ -271,6 +110,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
       r.status = found.reason;
       last_input_ = input;
       last_keep_.clear();
+      last_dense_of_input_.clear();
       timer.lap("floor");
       return r;
     }
@@ -281,16 +121,25 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   }
   r.floor = floor_;
   timer.lap("floor");
-  std::vector<char> keep = previous_index && !last_keep_.empty()
+  const bool has_previous = previous_index && previous_index->size() == input.size() && !last_keep_.empty();
+  std::vector<char> keep = has_previous
                                ? density_.keepFlagsUpdated(input, *previous_index, last_input_, last_keep_, &r.density)
                                : density_.keepFlags(input, &r.density);
+  // The points that go on, and for each the index it had among those of the last call (-1: new).
   PointList points;
   points.reserve(r.density.n_out);
+  std::vector<std::int32_t> dense_of_input(input.size(), -1), dense_previous;
+  dense_previous.reserve(r.density.n_out);
   for (std::size_t i = 0; i < input.size(); ++i)
   {
     if (keep[i])
     {
+      dense_of_input[i] = static_cast<std::int32_t>(points.size());
       points.push_back(input[i]);
+      const std::int32_t k = has_previous ? (*previous_index)[i] : -1;
+      dense_previous.push_back(k >= 0 && static_cast<std::size_t>(k) < last_dense_of_input_.size()
+                                   ? last_dense_of_input_[static_cast<std::size_t>(k)]
+                                   : -1);
     }
   }
   last_input_ = input;
@@ -311,6 +160,10 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   {
     cams_in.push_back(Eigen::Vector3d::Zero());
   }
+  // The same points under the same floor and cameras keep their camera, their band and their
+  // octree state (the octree only adds hits in voxels it has not seen and frees none that holds
+  // a point of the cloud), so only the new points are looked at and the ray count changes by them.
+  const bool continues = has_previous && !floor_moved && cams_in == last_cameras_ && !last_kind_.empty();
   std::vector<double> cam_height(cams_in.size());
   for (std::size_t c = 0; c < cams_in.size(); ++c)
   {
@@ -323,6 +176,11 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   {
     for (std::size_t i = 0; i < points.size(); ++i)
     {
+      if (continues && dense_previous[i] >= 0)
+      {
+        nearest[i] = last_camera_[static_cast<std::size_t>(dense_previous[i])];
+        continue;
+      }
       const Eigen::Vector3d p = points[i].cast<double>();
       double best = std::numeric_limits<double>::infinity();
       for (std::size_t c = 0; c < cams_in.size(); ++c)
@@ -348,42 +206,92 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   const bool filter = octree_ && config_.free_space_filter;
   // Heights first, so that the octree states of the band points come from one batch query.
   std::vector<double> heights(points.size());
+  std::vector<char>& kind = kind_;
+  kind.resize(points.size());
   PointList band;
+  std::vector<std::size_t> band_index;
   for (std::size_t i = 0; i < points.size(); ++i)
   {
-    heights[i] = plane.normal.dot(points[i].cast<double>()) + plane.d;
-    if (filter && !(heights[i] < z_lo) && !(heights[i] > z_hi))
+    if (continues && dense_previous[i] >= 0)
     {
-      band.push_back(out[i]);
+      heights[i] = last_h_[static_cast<std::size_t>(dense_previous[i])];
+      kind[i] = last_kind_[static_cast<std::size_t>(dense_previous[i])];
+      continue;
+    }
+    heights[i] = plane.normal.dot(points[i].cast<double>()) + plane.d;
+    if (heights[i] < z_lo)
+    {
+      kind[i] = kFloorBand;
+    }
+    else if (heights[i] > z_hi)
+    {
+      kind[i] = kCeilingBand;
+    }
+    else
+    {
+      kind[i] = kCandidate;
+      if (filter)
+      {
+        band.push_back(out[i]);
+        band_index.push_back(i);
+      }
     }
   }
-  const std::vector<VoxelState> band_states = filter ? octree_->query(band) : std::vector<VoxelState>();
-  std::size_t next_band = 0;
-  std::vector<std::size_t> candidates;  // band points not proven free by the octree
+  if (filter)
+  {
+    const std::vector<VoxelState> band_states = octree_->query(band);
+    for (std::size_t j = 0; j < band.size(); ++j)
+    {
+      if (band_states[j] == VoxelState::kFree)
+      {
+        kind[band_index[j]] = kFreed;
+      }
+    }
+  }
+  // Scratch kept between calls: its pages are reused rather than faulted in again.
+  std::vector<PassRay>& pass_rays = pass_rays_;
+  std::vector<PassCandidate>& candidates = candidates_;
+  std::vector<std::size_t>& candidate_index = candidate_index_;
+  std::vector<std::int32_t>& ray_of = ray_of_;  // index into r.rays
+  pass_rays.resize(points.size());
+  candidates.clear();
+  candidate_index.clear();
+  ray_of.assign(points.size(), -1);
   r.obstacles.reserve(points.size());
   r.rays.reserve(points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
   {
     const double h = heights[i];
-    if (h < z_lo)
+    const bool same = continues && dense_previous[i] >= 0;
+    switch (kind[i])
     {
-      ++r.n_floor_band;
-      if (h > -z_lo)
+      case kFloorBand:
+        ++r.n_floor_band;
+        if (h > -z_lo)
+        {
+          r.floor_points.push_back(out[i]);
+        }
+        break;
+      case kCeilingBand:
+        ++r.n_ceiling_band;
+        break;
+      case kFreed:
+        ++r.n_freed;
+        break;
+      default:
+        candidates.push_back(PassCandidate{ out[i].head<2>().cast<double>(), h });
+        candidate_index.push_back(i);
+    }
+    pass_rays[i] = PassRay{ static_cast<std::uint32_t>(nearest[i]), out[i].head<2>().cast<double>(), h };
+    if (same)
+    {
+      const std::int32_t last_ray = last_ray_of_[static_cast<std::size_t>(dense_previous[i])];
+      if (last_ray >= 0)
       {
-        r.floor_points.push_back(out[i]);
+        ray_of[i] = static_cast<std::int32_t>(r.rays.size());
+        r.rays.push_back(last_rays_[static_cast<std::size_t>(last_ray)]);
       }
-    }
-    else if (h > z_hi)
-    {
-      ++r.n_ceiling_band;
-    }
-    else if (filter && band_states[next_band++] == VoxelState::kFree)
-    {
-      ++r.n_freed;
-    }
-    else
-    {
-      candidates.push_back(i);
+      continue;
     }
     // The part of the ray from the nearest camera that lies inside the band, in heights.
     const double hc = cam_height[nearest[i]];
@@ -412,35 +320,85 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     }
     const Eigen::Vector3d& c = r.cameras[nearest[i]];
     const Eigen::Vector3d p = out[i].cast<double>();
+    ray_of[i] = static_cast<std::int32_t>(r.rays.size());
     r.rays.push_back(FreeRay{ (c + t0 * (p - c)).head<2>(), (c + t1 * (p - c)).head<2>() });
   }
   timer.lap("slice");
 
-  std::vector<char> passed;
   bool counted = true;
   if (config_.clear_hit_min_rays > 0)
   {
-    std::vector<Eigen::Vector2d> xy(points.size()), cam_xy(r.cameras.size());
-    for (std::size_t i = 0; i < points.size(); ++i)
-    {
-      xy[i] = out[i].head<2>().cast<double>();
-    }
+    std::vector<Eigen::Vector2d> cam_xy(r.cameras.size());
     for (std::size_t c = 0; c < r.cameras.size(); ++c)
     {
       cam_xy[c] = r.cameras[c].head<2>();
     }
-    counted = passedThrough(xy, heights, cam_xy, cam_height, nearest, candidates, config_, passed);
+    if (continues)
+    {
+      // What went and came: the last call's points no point of this one took over, and the new ones.
+      std::vector<char> taken(last_kind_.size(), 0);
+      std::vector<PassRay> removed_rays, added_rays;
+      std::vector<PassCandidate> removed_candidates, added_candidates;
+      for (std::size_t i = 0; i < points.size(); ++i)
+      {
+        if (dense_previous[i] >= 0)
+        {
+          taken[static_cast<std::size_t>(dense_previous[i])] = 1;
+        }
+        else
+        {
+          added_rays.push_back(pass_rays[i]);
+          if (kind[i] == kCandidate)
+          {
+            added_candidates.push_back(PassCandidate{ pass_rays[i].end_xy, heights[i] });
+          }
+        }
+      }
+      for (std::size_t k = 0; k < taken.size(); ++k)
+      {
+        if (!taken[k])
+        {
+          removed_rays.push_back(PassRay{ last_camera_[k], last_xy_[k], last_h_[k] });
+          if (last_kind_[k] == kCandidate)
+          {
+            removed_candidates.push_back(PassCandidate{ last_xy_[k], last_h_[k] });
+          }
+        }
+      }
+      counted = pass_count_.update(cam_xy, cam_height, removed_rays, added_rays, removed_candidates, added_candidates,
+                                   pass_rays, candidates);
+    }
+    else
+    {
+      counted = pass_count_.build(cam_xy, cam_height, pass_rays, candidates);
+    }
   }
+  const std::uint32_t min_rays = static_cast<std::uint32_t>(config_.clear_hit_min_rays);
   for (std::size_t j = 0; j < candidates.size(); ++j)
   {
-    if (!passed.empty() && passed[j])
+    if (config_.clear_hit_min_rays > 0 && counted && pass_count_.count(candidates[j].xy) >= min_rays)
     {
       ++r.n_passed;
     }
     else
     {
-      r.obstacles.push_back(out[candidates[j]]);
+      r.obstacles.push_back(out[candidate_index[j]]);
     }
+  }
+  // What the next call continues from.
+  last_dense_of_input_ = std::move(dense_of_input);
+  last_cameras_ = cams_in;
+  last_kind_.swap(kind_);
+  last_ray_of_.swap(ray_of_);
+  last_rays_ = r.rays;
+  last_camera_.resize(points.size());
+  last_xy_.resize(points.size());
+  last_h_.resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    last_camera_[i] = pass_rays[i].camera;
+    last_xy_[i] = pass_rays[i].end_xy;
+    last_h_[i] = heights[i];
   }
   timer.lap("clear");
   r.ok = true;

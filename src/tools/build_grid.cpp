@@ -489,6 +489,7 @@ int main(int argc, char** argv)
            << ", \"recomputed_tiles\": " << update.grid.recomputed_tiles.size()
            << ", \"changed_tiles\": " << update.grid.changed_tiles.size()
            << ", \"tiles\": " << (grid.width / args.config.grid.tile_size_cells) * (grid.height / args.config.grid.tile_size_cells)
+           << ", \"changed_points\": " << update.n_changed_points << ", \"density_counted\": " << update.density.n_counted
            << ", \"octree_new_voxels\": " << update.octree.n_new_voxels << ", \"octree_rays\": " << update.octree.n_rays
            << ", \"obstacles\": " << update.n_obstacles << ", \"freed\": " << update.n_freed << "}";
     }

@@ -1,12 +1,15 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <tuple>
 #include <random>
 #include <stdexcept>
 #include <vector>
 
 #include "sparse_nav/core/grid_pipeline.h"
 #include "sparse_nav/core/ground_mapper.h"
+#include "sparse_nav/core/ray_pass_count.h"
 #include "synthetic.h"
 
 using sparse_nav::DensityMethod;
@@ -326,4 +329,201 @@ TEST(GroundMapper, TheFloorIsFoundBeforeTheDensityFilterThinsIt)
     EXPECT_FALSE(std::abs(p.x() - 3.0f) < 0.01f && std::abs(p.y() - 2.5f) < 0.01f) << "the stray point was kept";
   }
   EXPECT_GT(r.stages_ms.count("density"), 0u);
+}
+
+namespace
+{
+/// Counts of a RayPassCount built from nothing on these rays and candidates, at every candidate.
+std::vector<std::uint32_t> builtCounts(const std::vector<Eigen::Vector2d>& cam_xy, const std::vector<double>& cam_h,
+                                       const std::vector<sparse_nav::PassRay>& rays,
+                                       const std::vector<sparse_nav::PassCandidate>& candidates)
+{
+  sparse_nav::RayPassCount fresh;
+  EXPECT_TRUE(fresh.build(cam_xy, cam_h, rays, candidates));
+  std::vector<std::uint32_t> counts;
+  for (const auto& c : candidates)
+  {
+    counts.push_back(fresh.count(c.xy));
+  }
+  return counts;
+}
+}  // namespace
+
+TEST(RayPassCount, UpdatesGiveTheCountsOfABuildFromNothing)
+{
+  // Two cameras in a 6 m x 5 m room of wall points at many heights, and stray points inside;
+  // each round some points move or go and new ones come, walls and strays alike.
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const std::vector<Eigen::Vector2d> cam_xy{ { 2.0, 2.5 }, { 4.1, 1.7 } };
+  const std::vector<double> cam_h{ 1.2, 0.9 };
+  auto randomPoint = [&]() {
+    const double t = u(rng);
+    Eigen::Vector2d xy;
+    if (t < 0.8)
+    {
+      const double s = u(rng);
+      const int wall = static_cast<int>(u(rng) * 4);
+      xy = wall == 0 ? Eigen::Vector2d(6.0 * s, 0.0)
+           : wall == 1 ? Eigen::Vector2d(6.0, 5.0 * s)
+           : wall == 2 ? Eigen::Vector2d(6.0 * s, 5.0)
+                       : Eigen::Vector2d(0.0, 5.0 * s);
+      xy += Eigen::Vector2d(u(rng) - 0.5, u(rng) - 0.5) * 0.1;
+    }
+    else
+    {
+      xy = Eigen::Vector2d(0.3 + 5.4 * u(rng), 0.3 + 4.4 * u(rng));
+    }
+    return std::make_pair(xy, 0.2 + 2.0 * u(rng));
+  };
+  std::vector<sparse_nav::PassRay> rays;
+  std::vector<sparse_nav::PassCandidate> candidates;
+  std::vector<char> is_candidate;
+  for (int i = 0; i < 4000; ++i)
+  {
+    const auto p = randomPoint();
+    rays.push_back(sparse_nav::PassRay{ static_cast<std::uint32_t>(i % 2), p.first, p.second });
+    is_candidate.push_back(p.second < 1.9 ? 1 : 0);  // the rest: above the band, a ray only
+  }
+  auto candidatesOf = [&]() {
+    std::vector<sparse_nav::PassCandidate> out;
+    for (std::size_t i = 0; i < rays.size(); ++i)
+    {
+      if (is_candidate[i])
+      {
+        out.push_back(sparse_nav::PassCandidate{ rays[i].end_xy, rays[i].end_h });
+      }
+    }
+    return out;
+  };
+  candidates = candidatesOf();
+  sparse_nav::RayPassCount count;
+  ASSERT_TRUE(count.build(cam_xy, cam_h, rays, candidates));
+  for (int round = 0; round < 8; ++round)  // past a quarter of the index stale: it is sorted again
+  {
+    std::vector<sparse_nav::PassRay> removed_rays, added_rays;
+    std::vector<sparse_nav::PassCandidate> removed_candidates, added_candidates;
+    for (std::size_t i = 0; i < rays.size(); ++i)
+    {
+      if (u(rng) < 0.02)
+      {
+        removed_rays.push_back(rays[i]);
+        if (is_candidate[i])
+        {
+          removed_candidates.push_back(sparse_nav::PassCandidate{ rays[i].end_xy, rays[i].end_h });
+        }
+        const auto p = randomPoint();
+        rays[i] = sparse_nav::PassRay{ rays[i].camera, p.first, p.second };
+        is_candidate[i] = p.second < 1.9 ? 1 : 0;
+        added_rays.push_back(rays[i]);
+        if (is_candidate[i])
+        {
+          added_candidates.push_back(sparse_nav::PassCandidate{ rays[i].end_xy, rays[i].end_h });
+        }
+      }
+    }
+    candidates = candidatesOf();
+    ASSERT_TRUE(count.update(cam_xy, cam_h, removed_rays, added_rays, removed_candidates, added_candidates, rays,
+                             candidates));
+    EXPECT_FALSE(count.lastWasBuild()) << "round " << round;
+    EXPECT_GT(count.numRecounted(), 0u);
+    const std::vector<std::uint32_t> expected = builtCounts(cam_xy, cam_h, rays, candidates);
+    std::size_t differ = 0, passed = 0;
+    for (std::size_t j = 0; j < candidates.size(); ++j)
+    {
+      differ += count.count(candidates[j].xy) != expected[j] ? 1 : 0;
+      passed += expected[j] >= 3 ? 1 : 0;
+    }
+    EXPECT_EQ(differ, 0u) << "round " << round;
+    EXPECT_GT(passed, 10u);  // the strays are seen past: the counts are not all zero
+  }
+  // A new candidate beyond the counted box is counted by a build.
+  const sparse_nav::PassRay far{ 0, Eigen::Vector2d(9.0, 2.0), 1.0 };
+  rays.push_back(far);
+  candidates.push_back(sparse_nav::PassCandidate{ far.end_xy, far.end_h });
+  ASSERT_TRUE(count.update(cam_xy, cam_h, {}, { far }, {}, { candidates.back() }, rays, candidates));
+  EXPECT_TRUE(count.lastWasBuild());
+}
+
+TEST(GroundMapper, AnUpdateThroughACorrespondenceGivesWhatAFreshMapperGives)
+{
+  // A room with stray points inside, seen from two cameras; then some points go, some move and
+  // new ones come. The correspondence (which point of the new cloud was which of the old) lets
+  // the mapper look at the changed points alone; the result must be a fresh mapper's.
+  GroundMapperConfig config = mapFrameConfig();
+  config.keep_floor = true;
+  config.free_space_filter = false;  // the octree keeps history a fresh mapper has not seen
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  config.floor.max_fit_points = 1000000;  // every floor point: the same floor in both clouds
+  PointList before = sparse_nav::test::makeRoom();
+  auto addStrays = [&](PointList& cloud, int n) {
+    for (int i = 0; i < n; ++i)  // clusters that the density filter keeps
+    {
+      const Eigen::Vector3f centre(0.5f + 4.0f * u(rng), 0.5f + 3.0f * u(rng), 0.3f + 1.5f * u(rng));
+      for (int k = 0; k < 8; ++k)
+      {
+        cloud.push_back(centre + Eigen::Vector3f(u(rng), u(rng), u(rng)) * 0.05f);
+      }
+    }
+  };
+  addStrays(before, 40);
+  const std::vector<Eigen::Vector3d> cameras{ { 2.5, 2.0, 1.2 }, { 1.0, 3.0, 1.0 } };
+  PointList after;
+  std::vector<std::int32_t> previous_index;
+  std::size_t moved = 0, dropped = 0;
+  for (std::size_t i = 0; i < before.size(); ++i)
+  {
+    // Floor points stay: both mappers then find the same floor.
+    const float t = before[i].z() > 0.3f ? u(rng) : 1.0f;
+    if (t < 0.02f)
+    {
+      ++dropped;
+      continue;
+    }
+    after.push_back(before[i]);
+    previous_index.push_back(static_cast<std::int32_t>(i));
+    if (t < 0.05f)
+    {
+      after.back() += Eigen::Vector3f(u(rng) - 0.5f, u(rng) - 0.5f, u(rng) - 0.5f) * 0.1f;
+      previous_index.back() = -1;
+      ++moved;
+    }
+  }
+  addStrays(after, 15);
+  previous_index.resize(after.size(), -1);
+  ASSERT_GT(moved, 10u);
+  ASSERT_GT(dropped, 10u);
+
+  GroundMapper incremental(config);
+  const GroundMapperResult first = incremental.process(before, cameras);
+  ASSERT_TRUE(first.ok) << first.status;
+  const GroundMapperResult update = incremental.process(after, cameras, &previous_index);
+  ASSERT_TRUE(update.ok) << update.status;
+  GroundMapper fresh(config);
+  const GroundMapperResult expected = fresh.process(after, cameras);
+  ASSERT_TRUE(expected.ok) << expected.status;
+
+  auto sorted = [](PointList points) {
+    std::sort(points.begin(), points.end(), [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+      return std::tie(a.x(), a.y(), a.z()) < std::tie(b.x(), b.y(), b.z());
+    });
+    return points;
+  };
+  EXPECT_EQ(update.n_passed, expected.n_passed);
+  EXPECT_GT(expected.n_passed, 20u);  // strays seen past: the count matters here
+  EXPECT_EQ(update.density.n_out, expected.density.n_out);
+  EXPECT_LT(update.density.n_counted, after.size());
+  EXPECT_TRUE(sorted(update.obstacles) == sorted(expected.obstacles));
+  ASSERT_EQ(update.rays.size(), expected.rays.size());
+  auto key = [](const sparse_nav::FreeRay& r) { return std::make_tuple(r.from.x(), r.from.y(), r.to.x(), r.to.y()); };
+  std::vector<std::tuple<double, double, double, double>> a, b;
+  for (std::size_t i = 0; i < update.rays.size(); ++i)
+  {
+    a.push_back(key(update.rays[i]));
+    b.push_back(key(expected.rays[i]));
+  }
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  EXPECT_TRUE(a == b);
 }

@@ -179,6 +179,8 @@ private:
   VoxelFilterConfig config_;
   std::vector<Voxel> voxels_;  // sorted by key, n > 0
   PointList centroids_;
+  std::vector<Voxel> spare_voxels_;  // the last update's buffers, written by the next one
+  PointList spare_centroids_;
   std::vector<std::int32_t> previous_index_;
   std::size_t n_dropped_ = 0;
   std::size_t n_unknown_removals_ = 0;

@@ -14,6 +14,7 @@
 #include "sparse_nav/core/floor_plane.h"
 #include "sparse_nav/core/grid_builder.h"
 #include "sparse_nav/core/octree_map.h"
+#include "sparse_nav/core/ray_pass_count.h"
 #include "sparse_nav/core/types.h"
 
 namespace sparse_nav
@@ -123,8 +124,27 @@ private:
   std::unique_ptr<OctreeMap> octree_;
   bool has_floor_ = false;
   FloorResult floor_;
+  // Kinds of the points that pass the density filter.
+  static constexpr char kFloorBand = 0, kCeilingBand = 1, kFreed = 2, kCandidate = 3;
+
+  RayPassCount pass_count_;
   PointList last_input_;          // the previous call's input
   std::vector<char> last_keep_;   // its density flags; empty when the filter did not run on it
+  std::vector<std::int32_t> last_dense_of_input_;  // per point of last_input_, its index among those kept, or -1
+  std::vector<Eigen::Vector3d> last_cameras_;      // the cameras of the last call, input frame
+  // Per point kept by the last call that got through: kind, camera, map x-y [m], height [m].
+  std::vector<char> last_kind_;
+  std::vector<std::uint32_t> last_camera_;
+  std::vector<Eigen::Vector2d> last_xy_;
+  std::vector<double> last_h_;
+  std::vector<std::int32_t> last_ray_of_;  // index into last_rays_, or -1 (no part inside the band)
+  std::vector<FreeRay> last_rays_;
+  // Scratch of process(), kept for its capacity.
+  std::vector<char> kind_;
+  std::vector<std::int32_t> ray_of_;
+  std::vector<PassRay> pass_rays_;
+  std::vector<PassCandidate> candidates_;
+  std::vector<std::size_t> candidate_index_;
 };
 
 }  // namespace sparse_nav

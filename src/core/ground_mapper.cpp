@@ -196,7 +196,28 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   }
   timer.lap("align");
 
-  if (octree_)
+  if (octree_ && continues)
+  {
+    // Only the new points can cast rays or hit voxels; the others keep their voxels from being freed.
+    PointList fresh, held;
+    std::vector<std::size_t> fresh_nearest;
+    held.reserve(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i)
+    {
+      if (dense_previous[i] >= 0)
+      {
+        held.push_back(out[i]);
+      }
+      else
+      {
+        fresh.push_back(out[i]);
+        fresh_nearest.push_back(nearest[i]);
+      }
+    }
+    r.octree = octree_->insert(fresh, r.cameras, fresh_nearest, &held);
+    timer.lap("octree");
+  }
+  else if (octree_)
   {
     r.octree = octree_->insert(out, r.cameras, nearest);
     timer.lap("octree");

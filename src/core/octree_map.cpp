@@ -497,7 +497,7 @@ void applySorted(octomap::OcTree& tree, octomap::OcTreeNode* node, bool just_cre
 }  // namespace
 
 OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<Eigen::Vector3d>& origins,
-                                    const std::vector<std::size_t>& origin_of_point)
+                                    const std::vector<std::size_t>& origin_of_point, const PointList* also_held)
 {
   OctreeInsertStats stats;
   if (origin_of_point.size() != points.size())
@@ -586,11 +586,31 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
   {
     return stats;
   }
+  // The coarse voxels of the points held from before: in range when they were inserted.
+  std::vector<Cell> held_cells;
+  if (also_held)
+  {
+    held_cells.reserve(also_held->size());
+    for (const auto& q : *also_held)
+    {
+      const Eigen::Vector3d p = q.cast<double>();
+      if (inRange(p))
+      {
+        held_cells.push_back(cellOf(tree_->coordToKey(p.x(), p.y(), p.z())));
+        lo = lo.min(held_cells.back());
+        hi = hi.max(held_cells.back());
+      }
+    }
+  }
 
   CellMarks marks(lo, hi);
   for (const auto& e : endpoints)
   {
     marks.mark(e.cell, CellMarks::kEndpoint);
+  }
+  for (const auto& c : held_cells)
+  {
+    marks.mark(c, CellMarks::kEndpoint);
   }
   auto castRay = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca, const Cell& cb,
                      bool include_end) {

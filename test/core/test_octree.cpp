@@ -300,6 +300,64 @@ TEST(OctreeMap, BatchQueryGivesTheStateOfEachPosition)
   EXPECT_GT(counts[static_cast<int>(VoxelState::kOccupied)], 1000u);
 }
 
+TEST(OctreeMap, NewPointsWithTheRestHeldGiveTheTreeOfTheWholeCloud)
+{
+  // A second cloud where some points moved (some of them into space the first cloud's rays freed)
+  // and new ones came: inserting only those, with the rest held, gives the tree of inserting it whole.
+  const PointList first = noisyRoom();
+  PointList fresh, held;
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (std::size_t i = 0; i < first.size(); ++i)
+  {
+    if (u(rng) < 0.03f)
+    {
+      fresh.push_back(first[i] + Eigen::Vector3f(u(rng) - 0.5f, u(rng) - 0.5f, u(rng) - 0.5f) * 0.6f);
+    }
+    else
+    {
+      held.push_back(first[i]);
+    }
+  }
+  for (int i = 0; i < 200; ++i)
+  {
+    fresh.emplace_back(0.5f + 5.0f * u(rng), 0.5f + 4.0f * u(rng), 0.2f + 2.0f * u(rng));
+  }
+  const std::vector<Eigen::Vector3d> cameras{ { 3.0, 2.5, 1.2 }, { 1.5, 1.0, 1.0 } };
+  auto nearestOf = [&](const PointList& pts) {
+    std::vector<std::size_t> nearest;
+    for (const auto& p : pts)
+    {
+      nearest.push_back((p.cast<double>() - cameras[0]).norm() < (p.cast<double>() - cameras[1]).norm() ? 0 : 1);
+    }
+    return nearest;
+  };
+  PointList whole = held;
+  whole.insert(whole.end(), fresh.begin(), fresh.end());
+  OctreeMap a, b;
+  a.insert(first, cameras, nearestOf(first));
+  b.insert(first, cameras, nearestOf(first));
+  const auto stats_a = a.insert(whole, cameras, nearestOf(whole));
+  const auto stats_b = b.insert(fresh, cameras, nearestOf(fresh), &held);
+  EXPECT_EQ(stats_a.n_new_voxels, stats_b.n_new_voxels);
+  EXPECT_GT(stats_b.n_new_voxels, 100u);
+  EXPECT_EQ(stats_a.n_free_voxels, stats_b.n_free_voxels);
+  EXPECT_EQ(a.numLeafNodes(), b.numLeafNodes());
+  PointList positions = whole;
+  std::uniform_real_distribution<float> x(-1.5f, 7.5f), y(-1.5f, 6.5f), z(-1.0f, 3.0f);
+  for (int i = 0; i < 20000; ++i)
+  {
+    positions.emplace_back(x(rng), y(rng), z(rng));
+  }
+  EXPECT_TRUE(a.query(positions) == b.query(positions));
+  // Without the held points, their coarse voxels are not protected and the rays free some: the
+  // held points are what makes the trees equal.
+  OctreeMap c;
+  c.insert(first, cameras, nearestOf(first));
+  c.insert(fresh, cameras, nearestOf(fresh));
+  EXPECT_FALSE(a.query(positions) == c.query(positions));
+}
+
 TEST(OctreeMap, ConfigValidation)
 {
   OctreeMapConfig cfg;

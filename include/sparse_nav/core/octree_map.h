@@ -94,9 +94,13 @@ public:
    * @param points endpoints in the map frame [m]
    * @param origins camera positions in the map frame [m]
    * @param origin_of_point index into origins for each point (same size as points)
+   * @param also_held optional: points inserted before that are still part of the cloud [m]. Their
+   *        coarse voxels are kept from being freed, as if they were in `points`, without being
+   *        looked up again: an update passes its new points in `points` and the rest here, and
+   *        gets what inserting the whole cloud gives.
    */
   OctreeInsertStats insert(const PointList& points, const std::vector<Eigen::Vector3d>& origins,
-                           const std::vector<std::size_t>& origin_of_point);
+                           const std::vector<std::size_t>& origin_of_point, const PointList* also_held = nullptr);
 
   /// @brief State of the voxel containing position (map frame, m).
   VoxelState query(const Eigen::Vector3d& position) const;

@@ -335,8 +335,9 @@ void IncrementalVoxelGrid::clear()
 {
   voxels_.clear();
   centroids_.clear();
-  spare_voxels_.clear();
-  spare_centroids_.clear();
+  index_.clear();
+  index_added_.clear();
+  n_emptied_ = 0;
   previous_index_.clear();
   n_dropped_ = 0;
   n_unknown_removals_ = 0;
@@ -402,66 +403,92 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
     }
   }
 
-  // Written into the buffers of the update before last: reused pages, not fresh ones, which
-  // cost more than the merge itself.
-  std::vector<Voxel>& voxels = spare_voxels_;
-  PointList& centroids = spare_centroids_;
-  std::vector<std::int32_t>& previous = previous_index_;
-  voxels.clear();
-  centroids.clear();
-  previous.clear();
-  voxels.reserve(voxels_.size() + added.size());
-  centroids.reserve(voxels.capacity());
-  previous.reserve(voxels.capacity());
   n_dropped_ = 0;
   n_unknown_removals_ = 0;
-  std::size_t i = 0, j = 0;
-  Key next = n > 0 ? keyOf(pointOf(order[0])) : Key{ 0, 0, 0 };
-  while (i < voxels_.size() || j < n)
-  {
-    if (j == n || (i < voxels_.size() && voxels_[i].key < next))
+  // Walks the changes voxel by voxel: calls apply(key, sum added, count added, sum removed, count removed).
+  auto forEachVoxel = [&](auto apply) {
+    Key next = n > 0 ? keyOf(pointOf(order[0])) : Key{ 0, 0, 0 };
+    for (std::size_t j = 0; j < n;)
     {
-      // The run of voxels no change reaches, copied whole.
-      const std::size_t end =
-          j == n ? voxels_.size()
-                 : static_cast<std::size_t>(std::lower_bound(voxels_.begin() + static_cast<std::ptrdiff_t>(i), voxels_.end(), next,
-                                                             [](const Voxel& v, const Key& k) { return v.key < k; }) -
-                                            voxels_.begin());
-      voxels.insert(voxels.end(), voxels_.begin() + static_cast<std::ptrdiff_t>(i), voxels_.begin() + static_cast<std::ptrdiff_t>(end));
-      centroids.insert(centroids.end(), centroids_.begin() + static_cast<std::ptrdiff_t>(i),
-                       centroids_.begin() + static_cast<std::ptrdiff_t>(end));
-      for (; i < end; ++i)
+      const Key key = next;
+      // Sums of this voxel's additions and removals: exact in double, so their order does not matter.
+      Eigen::Vector3d add = Eigen::Vector3d::Zero(), rem = Eigen::Vector3d::Zero();
+      std::int64_t n_add = 0, n_rem = 0;
+      do
       {
-        previous.push_back(static_cast<std::int32_t>(i));
-      }
-      continue;
+        const std::uint32_t c = order[j];
+        const Eigen::Vector3d p = pointOf(c).cast<double>();
+        if (c < n_removed)
+        {
+          rem += p;
+          ++n_rem;
+        }
+        else
+        {
+          add += p;
+          ++n_add;
+        }
+        ++j;
+        if (j < n)
+        {
+          next = keyOf(pointOf(order[j]));
+        }
+      } while (j < n && next == key);
+      apply(key, add, n_add, rem, n_rem);
     }
-    const Key key = next;
-    const bool existed = i < voxels_.size() && voxels_[i].key == key;
-    Voxel v = existed ? voxels_[i++] : Voxel{ key, 0.0, 0.0, 0.0, 0 };
-    // Sums of this voxel's additions and removals: exact in double, so their order does not matter.
-    Eigen::Vector3d add = Eigen::Vector3d::Zero(), rem = Eigen::Vector3d::Zero();
-    std::int64_t n_add = 0, n_rem = 0;
-    do
+  };
+  auto centroidOf = [](const Voxel& v) {
+    const double count = static_cast<double>(v.n);
+    return Eigen::Vector3f(static_cast<float>(v.sx / count), static_cast<float>(v.sy / count), static_cast<float>(v.sz / count));
+  };
+
+  if (voxels_.empty())
+  {
+    // From nothing: the voxels in key order, and the index over them as it stands.
+    voxels_.reserve(added.size());
+    centroids_.reserve(added.size());
+    forEachVoxel([&](const Key& key, const Eigen::Vector3d& add, std::int64_t n_add, const Eigen::Vector3d&, std::int64_t n_rem) {
+      n_unknown_removals_ += static_cast<std::size_t>(n_rem);
+      if (n_add > 0)
+      {
+        voxels_.push_back(Voxel{ key, add.x(), add.y(), add.z(), n_add });
+        centroids_.push_back(centroidOf(voxels_.back()));
+      }
+    });
+    previous_index_.assign(voxels_.size(), -1);
+    index_.resize(voxels_.size());
+    for (std::size_t i = 0; i < voxels_.size(); ++i)
     {
-      const std::uint32_t c = order[j];
-      const Eigen::Vector3d p = pointOf(c).cast<double>();
-      if (c < n_removed)
+      index_[i] = Entry{ voxels_[i].key, static_cast<std::int32_t>(i) };
+    }
+    index_added_.clear();
+    n_emptied_ = 0;
+    return;
+  }
+
+  // In place: changed voxels are rewritten where they are, an emptied one takes the last voxel
+  // into its place, and new ones come at the end; the rest is not touched.
+  previous_index_.resize(voxels_.size());
+  for (std::size_t i = 0; i < voxels_.size(); ++i)
+  {
+    previous_index_[i] = static_cast<std::int32_t>(i);
+  }
+  forEachVoxel([&](const Key& key, const Eigen::Vector3d& add, std::int64_t n_add, const Eigen::Vector3d& rem,
+                   std::int64_t n_rem) {
+    const std::int32_t slot = slotOf(key);
+    if (slot < 0)
+    {
+      n_unknown_removals_ += static_cast<std::size_t>(n_rem);
+      if (n_add > 0)
       {
-        rem += p;
-        ++n_rem;
+        voxels_.push_back(Voxel{ key, add.x(), add.y(), add.z(), n_add });
+        centroids_.push_back(centroidOf(voxels_.back()));
+        previous_index_.push_back(-1);
+        setSlot(key, static_cast<std::int32_t>(voxels_.size() - 1));
       }
-      else
-      {
-        add += p;
-        ++n_add;
-      }
-      ++j;
-      if (j < n)
-      {
-        next = keyOf(pointOf(order[j]));
-      }
-    } while (j < n && next == key);
+      return;
+    }
+    Voxel& v = voxels_[static_cast<std::size_t>(slot)];
     // More removals than points held: the caller removed points it never added; ignore them all.
     if (n_rem > v.n)
     {
@@ -478,18 +505,89 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
     v.sy += add.y();
     v.sz += add.z();
     v.n += n_add;
-    n_dropped_ += existed ? 1 : 0;
+    ++n_dropped_;
     if (v.n > 0)
     {
-      const double count = static_cast<double>(v.n);
-      voxels.push_back(v);
-      centroids.emplace_back(static_cast<float>(v.sx / count), static_cast<float>(v.sy / count),
-                             static_cast<float>(v.sz / count));
-      previous.push_back(-1);
+      centroids_[static_cast<std::size_t>(slot)] = centroidOf(v);
+      previous_index_[static_cast<std::size_t>(slot)] = -1;
+      return;
     }
+    setSlot(key, -1);
+    const std::size_t last = voxels_.size() - 1;
+    if (static_cast<std::size_t>(slot) != last)
+    {
+      voxels_[static_cast<std::size_t>(slot)] = voxels_[last];
+      centroids_[static_cast<std::size_t>(slot)] = centroids_[last];
+      previous_index_[static_cast<std::size_t>(slot)] = previous_index_[last];
+      setSlot(voxels_[static_cast<std::size_t>(slot)].key, slot);
+    }
+    voxels_.pop_back();
+    centroids_.pop_back();
+    previous_index_.pop_back();
+  });
+  // Emptied entries and keys added since the index was made are looked up the slow way: once
+  // they are a quarter of it, it is made again, by one merge of the two sorted parts.
+  if (4 * (n_emptied_ + index_added_.size()) > index_.size())
+  {
+    std::vector<Entry> merged;
+    merged.reserve(voxels_.size());
+    auto it = index_added_.begin();
+    for (const Entry& e : index_)
+    {
+      for (; it != index_added_.end() && it->first < e.key; ++it)
+      {
+        merged.push_back(Entry{ it->first, it->second });
+      }
+      if (e.slot >= 0)
+      {
+        merged.push_back(e);
+      }
+    }
+    for (; it != index_added_.end(); ++it)
+    {
+      merged.push_back(Entry{ it->first, it->second });
+    }
+    index_.swap(merged);
+    index_added_.clear();
+    n_emptied_ = 0;
   }
-  voxels_.swap(voxels);
-  centroids_.swap(centroids);
+}
+
+std::int32_t IncrementalVoxelGrid::slotOf(const Key& key) const
+{
+  const auto it = std::lower_bound(index_.begin(), index_.end(), key, [](const Entry& e, const Key& k) { return e.key < k; });
+  if (it != index_.end() && it->key == key)
+  {
+    return it->slot;  // -1 when emptied since; then it is not in index_added_ either
+  }
+  const auto found = index_added_.find(key);
+  return found == index_added_.end() ? -1 : found->second;
+}
+
+void IncrementalVoxelGrid::setSlot(const Key& key, std::int32_t slot)
+{
+  const auto it = std::lower_bound(index_.begin(), index_.end(), key, [](const Entry& e, const Key& k) { return e.key < k; });
+  if (it != index_.end() && it->key == key)
+  {
+    if (it->slot >= 0 && slot < 0)
+    {
+      ++n_emptied_;
+    }
+    else if (it->slot < 0 && slot >= 0)
+    {
+      --n_emptied_;
+    }
+    it->slot = slot;
+    return;
+  }
+  if (slot < 0)
+  {
+    index_added_.erase(key);
+  }
+  else
+  {
+    index_added_[key] = slot;
+  }
 }
 
 VoxelFilter::VoxelFilter(const VoxelFilterConfig& config) : config_(config)

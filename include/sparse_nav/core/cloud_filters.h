@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -135,8 +136,10 @@ struct VoxelFilterStats
  * on wide clouds. Here each voxel keeps its count and the sums of its points in double: sums of
  * floats of one voxel are exact in double, so removing a point undoes adding it and an update
  * gives the centroids of a build from scratch, independent of the order of the points. Voxel
- * indices are 64-bit: no extent overflows them. Centroids come sorted by voxel (z, then y, then x
- * index), the order PCL gives. Units are metres; any frame.
+ * indices are 64-bit: no extent overflows them. A build from nothing gives the centroids sorted
+ * by voxel (z, then y, then x index), the order PCL gives; an update touches only the voxels
+ * that changed (memory traffic over every voxel cost more than the update's own work), so their
+ * order is then its own. Units are metres; any frame.
  */
 class IncrementalVoxelGrid
 {
@@ -151,7 +154,9 @@ public:
   /// @brief Forgets every point.
   void clear();
 
-  /// @brief One centroid per occupied voxel, sorted by voxel.
+  /// @brief One centroid per occupied voxel: sorted by voxel after a build from nothing; an
+  /// update rewrites the changed ones in place, fills the place of an emptied voxel with the last
+  /// one and appends new ones.
   const PointList& centroids() const { return centroids_; }
   /// @brief Per centroid: its index in centroids() before the last update when its voxel's points
   /// are the same, else -1.
@@ -174,13 +179,23 @@ private:
     double sx, sy, sz;
     std::int64_t n;
   };
+  struct Entry
+  {
+    Key key;
+    std::int32_t slot;  // -1: emptied since the index was made
+  };
   Key keyOf(const Eigen::Vector3f& p) const;
+  /// The voxel's place in voxels_, or -1.
+  std::int32_t slotOf(const Key& key) const;
+  /// Records the voxel's place; -1 forgets it.
+  void setSlot(const Key& key, std::int32_t slot);
 
   VoxelFilterConfig config_;
-  std::vector<Voxel> voxels_;  // sorted by key, n > 0
-  PointList centroids_;
-  std::vector<Voxel> spare_voxels_;  // the last update's buffers, written by the next one
-  PointList spare_centroids_;
+  std::vector<Voxel> voxels_;  // n > 0; in key order after a build from nothing
+  PointList centroids_;        // of voxels_, place by place
+  std::vector<Entry> index_;   // by key: the voxels when it was made
+  std::map<Key, std::int32_t> index_added_;  // voxels that came since
+  std::size_t n_emptied_ = 0;  // entries of index_ with slot -1
   std::vector<std::int32_t> previous_index_;
   std::size_t n_dropped_ = 0;
   std::size_t n_unknown_removals_ = 0;

@@ -48,11 +48,13 @@ void bresenham(int x0, int y0, int x1, int y1, Visit visit)
   }
 }
 
-/// Sorts rays (x0, y0, x1, y1 lexicographic) and drops repeats. Rays within 65536 cells of each
+/// Sorts rays (x0, y0, x1, y1 lexicographic) and drops repeats, counting each ray's copies in
+/// counts (parallel to the rays left). Rays within 65536 cells of each
 /// other, as in any real map, are packed into one 64-bit key in that same order and radix-sorted:
 /// a hundred thousand rays per cloud made std::sort the grid's largest cost.
-void sortUnique(std::vector<GridBuilder::Ray>& rays)
+void sortUnique(std::vector<GridBuilder::Ray>& rays, std::vector<std::uint32_t>& counts)
 {
+  counts.clear();
   if (rays.empty())
   {
     return;
@@ -66,7 +68,20 @@ void sortUnique(std::vector<GridBuilder::Ray>& rays)
   if (hi - lo >= 65536)
   {
     std::sort(rays.begin(), rays.end());
-    rays.erase(std::unique(rays.begin(), rays.end()), rays.end());
+    std::size_t out = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i)
+    {
+      if (out > 0 && rays[out - 1] == rays[i])
+      {
+        ++counts.back();
+      }
+      else
+      {
+        rays[out++] = rays[i];
+        counts.push_back(1);
+      }
+    }
+    rays.resize(out);
     return;
   }
   std::vector<std::uint64_t> keys;
@@ -77,13 +92,18 @@ void sortUnique(std::vector<GridBuilder::Ray>& rays)
                    static_cast<std::uint64_t>(r.x1 - lo) << 16 | static_cast<std::uint64_t>(r.y1 - lo));
   }
   radixSort(keys);
-  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-  rays.resize(keys.size());
+  rays.clear();
   for (std::size_t i = 0; i < keys.size(); ++i)
   {
+    if (i > 0 && keys[i] == keys[i - 1])
+    {
+      ++counts.back();
+      continue;
+    }
     const std::uint64_t k = keys[i];
-    rays[i] = GridBuilder::Ray{ static_cast<std::int32_t>((k >> 48) + lo), static_cast<std::int32_t>(((k >> 32) & 0xffff) + lo),
-                                static_cast<std::int32_t>(((k >> 16) & 0xffff) + lo), static_cast<std::int32_t>((k & 0xffff) + lo) };
+    rays.push_back(GridBuilder::Ray{ static_cast<std::int32_t>((k >> 48) + lo), static_cast<std::int32_t>(((k >> 32) & 0xffff) + lo),
+                                     static_cast<std::int32_t>(((k >> 16) & 0xffff) + lo), static_cast<std::int32_t>((k & 0xffff) + lo) });
+    counts.push_back(1);
   }
 }
 
@@ -179,7 +199,9 @@ void GridBuilder::reset()
   alpha_m_ = config_.alpha.alpha_m;
   tile_cells_.clear();
   rays_.clear();
+  ray_count_.clear();
   ray_cover_.clear();
+  obstacle_count_.clear();
   last_shape_ = AlphaShapeResult();
 }
 
@@ -202,29 +224,21 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     cells.emplace_back(static_cast<std::int64_t>(std::floor(p.y() / res)),
                        static_cast<std::int64_t>(std::floor(p.x() / res)));
   }
+  const std::vector<std::pair<std::int64_t, std::int64_t>> cells_with_repeats = cells;
   sortUniqueCells(cells);
 
   std::vector<Ray> new_rays;
   new_rays.reserve(rays.size());
+  Ray converted;
   for (const auto& r : rays)
   {
-    if (!r.from.allFinite() || !r.to.allFinite() || r.from.cwiseAbs().maxCoeff() > limit ||
-        r.to.cwiseAbs().maxCoeff() > limit)
+    if (toRay(r, converted))
     {
-      continue;
+      new_rays.push_back(converted);
     }
-    std::int32_t ax = static_cast<std::int32_t>(std::floor(r.from.x() / res));
-    std::int32_t ay = static_cast<std::int32_t>(std::floor(r.from.y() / res));
-    std::int32_t bx = static_cast<std::int32_t>(std::floor(r.to.x() / res));
-    std::int32_t by = static_cast<std::int32_t>(std::floor(r.to.y() / res));
-    if (bx < ax || (bx == ax && by < ay))
-    {
-      std::swap(ax, bx);
-      std::swap(ay, by);
-    }
-    new_rays.push_back(Ray{ ax, ay, bx, by });
   }
-  sortUnique(new_rays);
+  std::vector<std::uint32_t> new_counts;
+  sortUnique(new_rays, new_counts);
   result.n_obstacle_cells = cells.size();
   result.n_rays = new_rays.size();
 
@@ -403,6 +417,251 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   }
   tile_cells_.swap(tile_cells);
   rays_.swap(new_rays);
+  ray_count_.swap(new_counts);
+  // How many obstacle points each cell holds: what an update by a change counts down and up.
+  obstacle_count_.assign(grid_.data.size(), 0);
+  for (const auto& c : cells_with_repeats)
+  {
+    ++obstacle_count_[static_cast<std::size_t>(c.first - cell0_y_) * grid_.width + static_cast<std::size_t>(c.second - cell0_x_)];
+  }
+  return finish(write, full, result);
+}
+
+bool GridBuilder::toRay(const FreeRay& r, Ray& out) const
+{
+  const double res = config_.resolution_m, limit = 1e9 * res;
+  if (!r.from.allFinite() || !r.to.allFinite() || r.from.cwiseAbs().maxCoeff() > limit || r.to.cwiseAbs().maxCoeff() > limit)
+  {
+    return false;
+  }
+  std::int32_t ax = static_cast<std::int32_t>(std::floor(r.from.x() / res));
+  std::int32_t ay = static_cast<std::int32_t>(std::floor(r.from.y() / res));
+  std::int32_t bx = static_cast<std::int32_t>(std::floor(r.to.x() / res));
+  std::int32_t by = static_cast<std::int32_t>(std::floor(r.to.y() / res));
+  if (bx < ax || (bx == ax && by < ay))
+  {
+    std::swap(ax, bx);
+    std::swap(ay, by);
+  }
+  out = Ray{ ax, ay, bx, by };
+  return true;
+}
+
+GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<FreeRay>& rays, const GridChange& change)
+{
+  if (grid_.empty() || obstacle_count_.size() != grid_.data.size())
+  {
+    return update(obstacles, rays);
+  }
+  const double res = config_.resolution_m, limit = 1e9 * res;
+  const int tile = config_.tile_size_cells;
+  // What came must lie where update(obstacles, rays) would not grow the grid: inside it by the padding.
+  const std::int64_t pad = static_cast<std::int64_t>(std::ceil(config_.padding_m / res));
+  const std::int64_t tx0 = cell0_x_ / tile, ty0 = cell0_y_ / tile;
+  auto fits = [&](std::int64_t x, std::int64_t y) {
+    return floorDiv(x - pad, tile) >= tx0 && floorDiv(y - pad, tile) >= ty0 && floorDiv(x + pad, tile) < tx0 + tiles_x_ &&
+           floorDiv(y + pad, tile) < ty0 + tiles_y_;
+  };
+  auto cellOf = [&](const Eigen::Vector2d& p, std::int64_t& x, std::int64_t& y) {
+    if (!p.allFinite() || std::abs(p.x()) > limit || std::abs(p.y()) > limit)
+    {
+      return false;
+    }
+    x = static_cast<std::int64_t>(std::floor(p.x() / res));
+    y = static_cast<std::int64_t>(std::floor(p.y() / res));
+    return true;
+  };
+  std::vector<Ray> rays_removed, rays_added;
+  Ray ray;
+  for (const auto& r : change.rays_removed)
+  {
+    if (toRay(r, ray))
+    {
+      rays_removed.push_back(ray);
+    }
+  }
+  for (const auto& r : change.rays_added)
+  {
+    if (toRay(r, ray))
+    {
+      if (!fits(ray.x0, ray.y0) || !fits(ray.x1, ray.y1))
+      {
+        return update(obstacles, rays);
+      }
+      rays_added.push_back(ray);
+    }
+  }
+  std::int64_t x = 0, y = 0;
+  for (const auto& p : change.obstacles_added)
+  {
+    if (cellOf(p, x, y) && !fits(x, y))
+    {
+      return update(obstacles, rays);
+    }
+  }
+
+  GridUpdate result;
+  const int n_tiles = tiles_x_ * tiles_y_;
+  std::vector<std::uint8_t> write(static_cast<std::size_t>(n_tiles), 0), dirty_occ(write.size(), 0);
+  bool consistent = true;
+  auto obstacle = [&](const Eigen::Vector2d& p, int sign) {
+    std::int64_t cx = 0, cy = 0;
+    if (!cellOf(p, cx, cy))
+    {
+      return;
+    }
+    const int col = static_cast<int>(cx - cell0_x_), row = static_cast<int>(cy - cell0_y_);
+    if (col < 0 || row < 0 || col >= grid_.width || row >= grid_.height)
+    {
+      consistent = false;  // a removed point the grid never held
+      return;
+    }
+    std::uint32_t& count = obstacle_count_[static_cast<std::size_t>(row) * grid_.width + col];
+    if (sign < 0 && count == 0)
+    {
+      consistent = false;
+      return;
+    }
+    count += sign > 0 ? 1 : static_cast<std::uint32_t>(-1);
+    if ((sign > 0 && count == 1) || (sign < 0 && count == 0))
+    {
+      const int t = (row / tile) * tiles_x_ + col / tile;
+      std::vector<std::uint32_t>& ids = tile_cells_[static_cast<std::size_t>(t)];
+      const std::uint32_t id = static_cast<std::uint32_t>((row % tile) * tile + col % tile);
+      const auto at = std::lower_bound(ids.begin(), ids.end(), id);
+      if (sign > 0)
+      {
+        ids.insert(at, id);
+      }
+      else
+      {
+        ids.erase(at);
+      }
+      dirty_occ[static_cast<std::size_t>(t)] = 1;
+    }
+  };
+  for (const auto& p : change.obstacles_removed)
+  {
+    obstacle(p, -1);
+  }
+  for (const auto& p : change.obstacles_added)
+  {
+    obstacle(p, +1);
+  }
+  auto cover = [&](const Ray& r, bool add) {
+    bresenham(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
+              static_cast<int>(r.y1 - cell0_y_), [&](int col, int row) {
+                std::uint32_t& count = ray_cover_[static_cast<std::size_t>(row) * grid_.width + col];
+                count = add ? count + 1 : count - 1;
+                write[static_cast<std::size_t>((row / tile) * tiles_x_ + col / tile)] = 1;
+              });
+  };
+  // A distinct ray covers its cells once, however many copies of it there are.
+  for (const Ray& r : rays_removed)
+  {
+    const auto it = std::lower_bound(rays_.begin(), rays_.end(), r);
+    if (it == rays_.end() || !(*it == r) || ray_count_[static_cast<std::size_t>(it - rays_.begin())] == 0)
+    {
+      consistent = false;
+      continue;
+    }
+    if (--ray_count_[static_cast<std::size_t>(it - rays_.begin())] == 0)
+    {
+      cover(r, false);
+    }
+  }
+  std::sort(rays_added.begin(), rays_added.end());
+  std::vector<Ray> inserted;
+  std::vector<std::uint32_t> inserted_count;
+  for (const Ray& r : rays_added)
+  {
+    const auto it = std::lower_bound(rays_.begin(), rays_.end(), r);
+    if (it != rays_.end() && *it == r)
+    {
+      if (ray_count_[static_cast<std::size_t>(it - rays_.begin())]++ == 0)
+      {
+        cover(r, true);
+      }
+    }
+    else if (!inserted.empty() && inserted.back() == r)
+    {
+      ++inserted_count.back();
+    }
+    else
+    {
+      inserted.push_back(r);
+      inserted_count.push_back(1);
+      cover(r, true);
+    }
+  }
+  if (!consistent)
+  {
+    // The change does not follow from what this builder holds: start from the lists.
+    reset();
+    return update(obstacles, rays);
+  }
+  // Rays whose copies are all gone leave the list, new ones join it: one merge.
+  const bool emptied = std::find(ray_count_.begin(), ray_count_.end(), 0u) != ray_count_.end();
+  if (emptied || !inserted.empty())
+  {
+    std::vector<Ray> merged_rays;
+    std::vector<std::uint32_t> merged_counts;
+    merged_rays.reserve(rays_.size() + inserted.size());
+    merged_counts.reserve(merged_rays.capacity());
+    std::size_t j = 0;
+    for (std::size_t i = 0; i < rays_.size(); ++i)
+    {
+      for (; j < inserted.size() && inserted[j] < rays_[i]; ++j)
+      {
+        merged_rays.push_back(inserted[j]);
+        merged_counts.push_back(inserted_count[j]);
+      }
+      if (ray_count_[i] > 0)
+      {
+        merged_rays.push_back(rays_[i]);
+        merged_counts.push_back(ray_count_[i]);
+      }
+    }
+    for (; j < inserted.size(); ++j)
+    {
+      merged_rays.push_back(inserted[j]);
+      merged_counts.push_back(inserted_count[j]);
+    }
+    rays_.swap(merged_rays);
+    ray_count_.swap(merged_counts);
+  }
+  const int margin = static_cast<int>(std::ceil((2.0 * alpha_m_ / res + 2.0) / tile));
+  for (int ty = 0; ty < tiles_y_; ++ty)
+  {
+    for (int tx = 0; tx < tiles_x_; ++tx)
+    {
+      if (!dirty_occ[static_cast<std::size_t>(ty * tiles_x_ + tx)])
+      {
+        continue;
+      }
+      for (int wy = std::max(0, ty - margin); wy <= std::min(tiles_y_ - 1, ty + margin); ++wy)
+      {
+        for (int wx = std::max(0, tx - margin); wx <= std::min(tiles_x_ - 1, tx + margin); ++wx)
+        {
+          write[static_cast<std::size_t>(wy * tiles_x_ + wx)] = 1;
+        }
+      }
+    }
+  }
+  result.n_rays = rays_.size();
+  result.n_obstacle_cells = 0;
+  for (const auto& ids : tile_cells_)
+  {
+    result.n_obstacle_cells += ids.size();
+  }
+  return finish(write, false, result);
+}
+
+GridUpdate GridBuilder::finish(const std::vector<std::uint8_t>& write, bool full, GridUpdate result)
+{
+  const int tile = config_.tile_size_cells;
+  const int n_tiles = tiles_x_ * tiles_y_;
+  const int margin = static_cast<int>(std::ceil((2.0 * alpha_m_ / config_.resolution_m + 2.0) / tile));
 
   // One window: the bounding box of the tiles to write, plus the alpha-shape context margin.
   int wx0 = tiles_x_, wy0 = tiles_y_, wx1 = -1, wy1 = -1;

@@ -61,6 +61,7 @@ void GridPipeline::forgetLastCloud()
   voxel_.clear();
   last_points_.clear();
   ground_saw_last_cloud_ = false;
+  builder_saw_last_ground_ = false;
 }
 
 void GridPipeline::reset()
@@ -145,6 +146,7 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     r.density = g.density;
     if (!g.ok)
     {
+      builder_saw_last_ground_ = false;
       r.status = g.status;
       r.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       return r;
@@ -166,7 +168,20 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       obstacles.emplace_back(p.x(), p.y());
     }
     timer.restart();
-    r.grid = builder_.update(obstacles, g.rays);
+    if (builder_saw_last_ground_ && g.incremental)
+    {
+      GridChange change;
+      change.obstacles_removed = g.obstacles_removed_xy;
+      change.obstacles_added = g.obstacles_added_xy;
+      change.rays_removed = g.rays_removed;
+      change.rays_added = g.rays_added;
+      r.grid = builder_.update(obstacles, g.rays, change);
+    }
+    else
+    {
+      r.grid = builder_.update(obstacles, g.rays);
+    }
+    builder_saw_last_ground_ = r.grid.ok;
     timer.lap("grid");
     r.ok = r.grid.ok;
     char buf[256];

@@ -346,6 +346,26 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   }
   timer.lap("slice");
 
+  // The last call's points that no point of this one took over.
+  std::vector<std::size_t> gone;
+  if (continues)
+  {
+    std::vector<char> taken(last_kind_.size(), 0);
+    for (const std::int32_t k : dense_previous)
+    {
+      if (k >= 0)
+      {
+        taken[static_cast<std::size_t>(k)] = 1;
+      }
+    }
+    for (std::size_t k = 0; k < taken.size(); ++k)
+    {
+      if (!taken[k])
+      {
+        gone.push_back(k);
+      }
+    }
+  }
   bool counted = true;
   if (config_.clear_hit_min_rays > 0)
   {
@@ -356,17 +376,11 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     }
     if (continues)
     {
-      // What went and came: the last call's points no point of this one took over, and the new ones.
-      std::vector<char> taken(last_kind_.size(), 0);
       std::vector<PassRay> removed_rays, added_rays;
       std::vector<PassCandidate> removed_candidates, added_candidates;
       for (std::size_t i = 0; i < points.size(); ++i)
       {
-        if (dense_previous[i] >= 0)
-        {
-          taken[static_cast<std::size_t>(dense_previous[i])] = 1;
-        }
-        else
+        if (dense_previous[i] < 0)
         {
           added_rays.push_back(pass_rays[i]);
           if (kind[i] == kCandidate)
@@ -375,15 +389,12 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
           }
         }
       }
-      for (std::size_t k = 0; k < taken.size(); ++k)
+      for (const std::size_t k : gone)
       {
-        if (!taken[k])
+        removed_rays.push_back(PassRay{ last_camera_[k], last_xy_[k], last_h_[k] });
+        if (last_kind_[k] == kCandidate)
         {
-          removed_rays.push_back(PassRay{ last_camera_[k], last_xy_[k], last_h_[k] });
-          if (last_kind_[k] == kCandidate)
-          {
-            removed_candidates.push_back(PassCandidate{ last_xy_[k], last_h_[k] });
-          }
+          removed_candidates.push_back(PassCandidate{ last_xy_[k], last_h_[k] });
         }
       }
       counted = pass_count_.update(cam_xy, cam_height, removed_rays, added_rays, removed_candidates, added_candidates,
@@ -395,6 +406,8 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     }
   }
   const std::uint32_t min_rays = static_cast<std::uint32_t>(config_.clear_hit_min_rays);
+  std::vector<char>& obstacle = obstacle_;
+  obstacle.assign(points.size(), 0);
   for (std::size_t j = 0; j < candidates.size(); ++j)
   {
     if (config_.clear_hit_min_rays > 0 && counted && pass_count_.count(candidates[j].xy) >= min_rays)
@@ -403,13 +416,51 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     }
     else
     {
+      obstacle[candidate_index[j]] = 1;
       r.obstacles.push_back(out[candidate_index[j]]);
+    }
+  }
+  if (continues)
+  {
+    // How the obstacles and rays differ from the last call's, for an update of the grid by them alone.
+    r.incremental = true;
+    for (std::size_t i = 0; i < points.size(); ++i)
+    {
+      const std::int32_t k = dense_previous[i];
+      if (k >= 0)
+      {
+        if (obstacle[i] != last_obstacle_[static_cast<std::size_t>(k)])
+        {
+          (obstacle[i] ? r.obstacles_added_xy : r.obstacles_removed_xy).push_back(pass_rays[i].end_xy);
+        }
+        continue;
+      }
+      if (obstacle[i])
+      {
+        r.obstacles_added_xy.push_back(pass_rays[i].end_xy);
+      }
+      if (ray_of[i] >= 0)
+      {
+        r.rays_added.push_back(r.rays[static_cast<std::size_t>(ray_of[i])]);
+      }
+    }
+    for (const std::size_t k : gone)
+    {
+      if (last_obstacle_[k])
+      {
+        r.obstacles_removed_xy.push_back(last_xy_[k]);
+      }
+      if (last_ray_of_[k] >= 0)
+      {
+        r.rays_removed.push_back(last_rays_[static_cast<std::size_t>(last_ray_of_[k])]);
+      }
     }
   }
   // What the next call continues from.
   last_dense_of_input_ = std::move(dense_of_input);
   last_cameras_ = cams_in;
   last_kind_.swap(kind_);
+  last_obstacle_.swap(obstacle_);
   last_ray_of_.swap(ray_of_);
   last_rays_ = r.rays;
   last_camera_.resize(points.size());

@@ -531,3 +531,84 @@ TEST(RadixSort, AgreesWithStdSort)
     EXPECT_EQ(keys, expected);
   }
 }
+
+TEST(GridBuilder, AnUpdateByTheChangeGivesTheGridOfTheWholeLists)
+{
+  // A room's walls and rays to them from a camera, with repeated points and rays; each round some
+  // wall points move, some go, new ones come, and rays follow them. The builder updated by the
+  // change alone must match one given the whole lists every round, cell for cell.
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const Eigen::Vector2d camera(2.5, 2.0);
+  auto wallPoint = [&]() {
+    const double s = u(rng);
+    switch (static_cast<int>(u(rng) * 4))
+    {
+      case 0:
+        return Eigen::Vector2d(5.0 * s, 0.0 + 0.02 * u(rng));
+      case 1:
+        return Eigen::Vector2d(5.0 - 0.02 * u(rng), 4.0 * s);
+      case 2:
+        return Eigen::Vector2d(5.0 * s, 4.0 - 0.02 * u(rng));
+      default:
+        return Eigen::Vector2d(0.02 * u(rng), 4.0 * s);
+    }
+  };
+  PointList2D obstacles;
+  std::vector<FreeRay> rays;
+  for (int i = 0; i < 3000; ++i)
+  {
+    obstacles.push_back(wallPoint());
+    rays.push_back(FreeRay{ camera, obstacles.back() });
+    if (i % 10 == 0)
+    {
+      obstacles.push_back(obstacles.back());  // the same point twice
+      rays.push_back(rays.back());
+    }
+  }
+  GridBuilder incremental, whole;
+  incremental.update(obstacles, rays);
+  whole.update(obstacles, rays);
+  for (int round = 0; round < 6; ++round)
+  {
+    sparse_nav::GridChange change;
+    for (std::size_t i = 0; i < obstacles.size(); ++i)
+    {
+      const double t = u(rng);
+      if (t < 0.03)
+      {
+        change.obstacles_removed.push_back(obstacles[i]);
+        change.rays_removed.push_back(rays[i]);
+        obstacles[i] = t < 0.015 ? wallPoint() : Eigen::Vector2d(0.5 + 4.0 * u(rng), 0.5 + 3.0 * u(rng));
+        rays[i] = FreeRay{ camera, obstacles[i] };
+        change.obstacles_added.push_back(obstacles[i]);
+        change.rays_added.push_back(rays[i]);
+      }
+    }
+    const GridUpdate a = incremental.update(obstacles, rays, change);
+    const GridUpdate b = whole.update(obstacles, rays);
+    ASSERT_TRUE(a.ok) << a.status;
+    EXPECT_FALSE(a.full_rebuild);
+    EXPECT_EQ(a.n_rays, b.n_rays) << "round " << round;
+    EXPECT_EQ(a.n_obstacle_cells, b.n_obstacle_cells) << "round " << round;
+    EXPECT_LT(a.recomputed_tiles.size(), 2 * b.recomputed_tiles.size() + 1);
+    ASSERT_EQ(incremental.grid().data.size(), whole.grid().data.size());
+    EXPECT_TRUE(incremental.grid().data == whole.grid().data) << "round " << round;
+  }
+  // A change reaching beyond the grid grows it, as the whole lists do.
+  sparse_nav::GridChange far;
+  far.obstacles_added.push_back(Eigen::Vector2d(12.0, 2.0));
+  far.rays_added.push_back(FreeRay{ camera, Eigen::Vector2d(12.0, 2.0) });
+  obstacles.push_back(far.obstacles_added.back());
+  rays.push_back(far.rays_added.back());
+  const GridUpdate grown = incremental.update(obstacles, rays, far);
+  EXPECT_TRUE(grown.full_rebuild);
+  whole.update(obstacles, rays);
+  EXPECT_TRUE(incremental.grid().data == whole.grid().data);
+  // A change that removes what the builder never held starts again from the lists.
+  sparse_nav::GridChange wrong;
+  wrong.rays_removed.push_back(FreeRay{ Eigen::Vector2d(1.0, 1.0), Eigen::Vector2d(1.3, 1.1) });
+  const GridUpdate restarted = incremental.update(obstacles, rays, wrong);
+  EXPECT_TRUE(restarted.full_rebuild);
+  EXPECT_TRUE(incremental.grid().data == whole.grid().data);
+}

@@ -75,6 +75,17 @@ struct GridBuilderConfig
   void validate() const;
 };
 
+/// @brief What changed between two clouds given to GridBuilder: obstacle points and free rays
+/// that went and that came (map frame, metres). A point or ray present several times counts
+/// several times.
+struct GridChange
+{
+  PointList2D obstacles_removed;
+  PointList2D obstacles_added;
+  std::vector<FreeRay> rays_removed;
+  std::vector<FreeRay> rays_added;
+};
+
 /// @brief What GridBuilder::update did.
 struct GridUpdate
 {
@@ -111,6 +122,13 @@ public:
   /// @param obstacles obstacle points projected to the map x-y plane [m]
   /// @param rays free-space rays [m]
   GridUpdate update(const PointList2D& obstacles, const std::vector<FreeRay>& rays);
+  /**
+   * @brief update(obstacles, rays) for lists that differ from the last call's by `change`, looking
+   * at the changed cells and rays alone instead of comparing the whole lists. Falls back to
+   * update(obstacles, rays) when the change reaches beyond the grid or does not follow from what
+   * the last call gave (a removed point or ray it never held).
+   */
+  GridUpdate update(const PointList2D& obstacles, const std::vector<FreeRay>& rays, const GridChange& change);
   /// @brief Forgets everything; the next update is a full rebuild.
   void reset();
 
@@ -133,6 +151,10 @@ private:
   };
   void recomputeWindow(const Window& window, const std::vector<std::uint8_t>& write_tile, double alpha_m,
                        bool keep_shape);
+  /// Recomputes the tiles marked in write and fills in result's tiles and status.
+  GridUpdate finish(const std::vector<std::uint8_t>& write, bool full, GridUpdate result);
+  /// The ray's end cells, in canonical order; false when a coordinate is not finite or too large.
+  bool toRay(const FreeRay& r, Ray& out) const;
 
   GridBuilderConfig config_;
   OccupancyGrid grid_;
@@ -142,7 +164,9 @@ private:
   double alpha_m_ = 0.0;
   std::vector<std::vector<std::uint32_t>> tile_cells_;  // sorted local cell ids per tile
   std::vector<Ray> rays_;                                // sorted, unique
+  std::vector<std::uint32_t> ray_count_;                 // per rays_ entry: its copies among the last rays
   std::vector<std::uint32_t> ray_cover_;                 // per grid cell: how many of rays_ cross it
+  std::vector<std::uint32_t> obstacle_count_;            // per grid cell: the last obstacle points in it
   AlphaShapeResult last_shape_;
 };
 

@@ -104,6 +104,7 @@ private:
   IncrementalVoxelGrid voxel_;
   PointList last_points_;  // the last cloud, guarded and scaled
   bool ground_saw_last_cloud_ = false;  // GroundMapper's last input is voxel_'s last output
+  bool builder_saw_last_ground_ = false;  // GridBuilder's last input is GroundMapper's last output
   GroundMapper ground_;
   GridBuilder builder_;
 };

@@ -78,6 +78,13 @@ struct GroundMapperResult
   std::size_t n_passed = 0;        ///< band points dropped because clear_hit_min_rays rays passed them
   OctreeInsertStats octree;
   std::map<std::string, double> stages_ms;  ///< "floor", "density", "align", "octree", "slice" [ms]
+  /// True when this call continued from the last one through previous_index: the change lists
+  /// below then say how obstacles (x-y) and rays differ from the last call's.
+  bool incremental = false;
+  PointList2D obstacles_removed_xy;
+  PointList2D obstacles_added_xy;
+  std::vector<FreeRay> rays_removed;
+  std::vector<FreeRay> rays_added;
 };
 
 /**
@@ -137,10 +144,12 @@ private:
   std::vector<std::uint32_t> last_camera_;
   std::vector<Eigen::Vector2d> last_xy_;
   std::vector<double> last_h_;
+  std::vector<char> last_obstacle_;
   std::vector<std::int32_t> last_ray_of_;  // index into last_rays_, or -1 (no part inside the band)
   std::vector<FreeRay> last_rays_;
   // Scratch of process(), kept for its capacity.
   std::vector<char> kind_;
+  std::vector<char> obstacle_;
   std::vector<std::int32_t> ray_of_;
   std::vector<PassRay> pass_rays_;
   std::vector<PassCandidate> candidates_;

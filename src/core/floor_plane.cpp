@@ -778,14 +778,19 @@ Eigen::Isometry3d alignToFloor(const FloorPlane& plane)
 
 PointList transformPoints(const PointList& points, const Eigen::Isometry3d& transform)
 {
-  const Eigen::Isometry3f t = transform.cast<float>();
   PointList out;
-  out.reserve(points.size());
-  for (const auto& p : points)
-  {
-    out.push_back(t * p);
-  }
+  transformPoints(points, transform, out);
   return out;
+}
+
+void transformPoints(const PointList& points, const Eigen::Isometry3d& transform, PointList& out)
+{
+  const Eigen::Isometry3f t = transform.cast<float>();
+  out.resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    out[i] = t * points[i];
+  }
 }
 
 }  // namespace sparse_nav

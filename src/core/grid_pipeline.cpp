@@ -90,7 +90,8 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     // SLAM map points keep their place in the list between updates (new ones come at the end), so
     // the points that differ at the same index are the ones that moved: only they change voxels.
     PointList added, removed;
-    std::vector<std::int32_t> previous_index(points.size(), -1);
+    std::vector<std::int32_t>& previous_index = previous_index_;
+    previous_index.assign(points.size(), -1);
     const std::size_t common = std::min(points.size(), last_points_.size());
     for (std::size_t i = 0; i < common; ++i)
     {
@@ -137,7 +138,7 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     }
     const bool continues = ground_saw_last_cloud_;
     ground_saw_last_cloud_ = true;
-    const GroundMapperResult g = ground_.process(voxels, cameras, continues ? &previous_index : nullptr);
+    GroundMapperResult g = ground_.process(voxels, cameras, continues ? &previous_index : nullptr);
     for (const auto& kv : g.stages_ms)
     {
       r.stages_ms[kv.first] += kv.second;
@@ -161,20 +162,20 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     r.n_ceiling_band = g.n_ceiling_band;
     r.n_freed = g.n_freed;
     r.n_obstacles = g.obstacles.size();
-    PointList2D obstacles;
-    obstacles.reserve(g.obstacles.size());
-    for (const auto& p : g.obstacles)
+    PointList2D& obstacles = obstacles_xy_;
+    obstacles.resize(g.obstacles.size());
+    for (std::size_t i = 0; i < g.obstacles.size(); ++i)
     {
-      obstacles.emplace_back(p.x(), p.y());
+      obstacles[i] = g.obstacles[i].head<2>().cast<double>();
     }
     timer.restart();
     if (builder_saw_last_ground_ && g.incremental)
     {
       GridChange change;
-      change.obstacles_removed = g.obstacles_removed_xy;
-      change.obstacles_added = g.obstacles_added_xy;
-      change.rays_removed = g.rays_removed;
-      change.rays_added = g.rays_added;
+      change.obstacles_removed = std::move(g.obstacles_removed_xy);
+      change.obstacles_added = std::move(g.obstacles_added_xy);
+      change.rays_removed = std::move(g.rays_removed);
+      change.rays_added = std::move(g.rays_added);
       r.grid = builder_.update(obstacles, g.rays, change);
     }
     else

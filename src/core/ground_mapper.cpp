@@ -126,10 +126,14 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
                                ? density_.keepFlagsUpdated(input, *previous_index, last_input_, last_keep_, &r.density)
                                : density_.keepFlags(input, &r.density);
   // The points that go on, and for each the index it had among those of the last call (-1: new).
-  PointList points;
-  points.reserve(r.density.n_out);
-  std::vector<std::int32_t> dense_of_input(input.size(), -1), dense_previous;
-  dense_previous.reserve(r.density.n_out);
+  // Scratch members here and below keep their capacity between calls: fresh buffers per update
+  // cost more in page faults than the update's own work.
+  PointList& points = points_;
+  points.clear();
+  std::vector<std::int32_t>& dense_of_input = dense_of_input_;
+  dense_of_input.assign(input.size(), -1);
+  std::vector<std::int32_t>& dense_previous = dense_previous_;
+  dense_previous.clear();
   for (std::size_t i = 0; i < input.size(); ++i)
   {
     if (keep[i])
@@ -170,8 +174,17 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     r.cameras.push_back(r.to_output * cams_in[c]);
     cam_height[c] = plane.normal.dot(cams_in[c]) + plane.d;
   }
-  const PointList out = config_.align_to_floor ? transformPoints(points, r.to_output) : points;
-  std::vector<std::size_t> nearest(points.size(), 0);
+  PointList& out = out_;
+  if (config_.align_to_floor)
+  {
+    transformPoints(points, r.to_output, out);
+  }
+  else
+  {
+    out = points;
+  }
+  std::vector<std::size_t>& nearest = nearest_;
+  nearest.assign(points.size(), 0);
   if (cams_in.size() > 1)
   {
     for (std::size_t i = 0; i < points.size(); ++i)
@@ -198,23 +211,18 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
 
   if (octree_ && continues)
   {
-    // Only the new points can cast rays or hit voxels; the others keep their voxels from being freed.
-    PointList fresh, held;
+    // Only the new points can cast rays or hit voxels; all keep their voxels from being freed.
+    PointList fresh;
     std::vector<std::size_t> fresh_nearest;
-    held.reserve(points.size());
     for (std::size_t i = 0; i < points.size(); ++i)
     {
-      if (dense_previous[i] >= 0)
-      {
-        held.push_back(out[i]);
-      }
-      else
+      if (dense_previous[i] < 0)
       {
         fresh.push_back(out[i]);
         fresh_nearest.push_back(nearest[i]);
       }
     }
-    r.octree = octree_->insert(fresh, r.cameras, fresh_nearest, &held);
+    r.octree = octree_->insert(fresh, r.cameras, fresh_nearest, &out);
     timer.lap("octree");
   }
   else if (octree_)
@@ -226,7 +234,8 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   const double z_lo = config_.floor_clearance_m, z_hi = config_.ceiling_height_m;
   const bool filter = octree_ && config_.free_space_filter;
   // Heights first, so that the octree states of the band points come from one batch query.
-  std::vector<double> heights(points.size());
+  std::vector<double>& heights = heights_;
+  heights.resize(points.size());
   std::vector<char>& kind = kind_;
   kind.resize(points.size());
   PointList band;
@@ -457,7 +466,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     }
   }
   // What the next call continues from.
-  last_dense_of_input_ = std::move(dense_of_input);
+  last_dense_of_input_.swap(dense_of_input_);
   last_cameras_ = cams_in;
   last_kind_.swap(kind_);
   last_obstacle_.swap(obstacle_);

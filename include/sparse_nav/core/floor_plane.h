@@ -124,6 +124,8 @@ Eigen::Isometry3d alignToFloor(const FloorPlane& plane);
 
 /// @brief Applies a rigid transform to every point.
 PointList transformPoints(const PointList& points, const Eigen::Isometry3d& transform);
+/// @brief The same into `out` (resized; its capacity is reused).
+void transformPoints(const PointList& points, const Eigen::Isometry3d& transform, PointList& out);
 
 }  // namespace sparse_nav
 

@@ -105,6 +105,9 @@ private:
   PointList last_points_;  // the last cloud, guarded and scaled
   bool ground_saw_last_cloud_ = false;  // GroundMapper's last input is voxel_'s last output
   bool builder_saw_last_ground_ = false;  // GridBuilder's last input is GroundMapper's last output
+  // Scratch of process(), kept for its capacity.
+  std::vector<std::int32_t> previous_index_;
+  PointList2D obstacles_xy_;
   GroundMapper ground_;
   GridBuilder builder_;
 };

@@ -148,6 +148,12 @@ private:
   std::vector<std::int32_t> last_ray_of_;  // index into last_rays_, or -1 (no part inside the band)
   std::vector<FreeRay> last_rays_;
   // Scratch of process(), kept for its capacity.
+  PointList points_;
+  PointList out_;
+  std::vector<std::int32_t> dense_of_input_;
+  std::vector<std::int32_t> dense_previous_;
+  std::vector<std::size_t> nearest_;
+  std::vector<double> heights_;
   std::vector<char> kind_;
   std::vector<char> obstacle_;
   std::vector<std::int32_t> ray_of_;

@@ -236,11 +236,18 @@ std::vector<char> DensityFilter::keepFlagsUpdated(const PointList& points, const
     }
     lo -= 2.0;
     hi += 2.0;
+    // The box of those cells in metres, widened by a cell: most points fail it before their cell is taken.
+    const Eigen::Array3f lo_m = ((lo - 1.0) * config_.radius_m).cast<float>(), hi_m = ((hi + 2.0) * config_.radius_m).cast<float>();
     PointList support;
     std::vector<std::size_t> support_index;
     std::vector<char> recount;
     for (std::size_t i = 0; i < points.size(); ++i)
     {
+      const Eigen::Array3f p = points[i].array();
+      if ((p < lo_m).any() || (p > hi_m).any())
+      {
+        continue;
+      }
       const Eigen::Array3d c = cellOf(points[i]);
       if ((c < lo).any() || (c > hi).any() || !near2.contains(packed(c)))
       {

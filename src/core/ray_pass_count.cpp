@@ -421,8 +421,20 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
   }
   if (!changed.empty())
   {
+    // The changed cells' box in metres, a cell wider: most candidates fail it before their cell is taken.
+    Eigen::Array2d lo_m(std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()), hi_m = -lo_m;
+    for (const std::size_t k : changed)
+    {
+      const Eigen::Array2d c(lo_.x() + static_cast<double>(k % size_.x()), lo_.y() + static_cast<double>(k / size_.x()));
+      lo_m = lo_m.min((c - 1.0) * config_.cell_m);
+      hi_m = hi_m.max((c + 2.0) * config_.cell_m);
+    }
     for (const auto& p : candidates)
     {
+      if ((p.xy.array() < lo_m).any() || (p.xy.array() > hi_m).any())
+      {
+        continue;
+      }
       const Eigen::Vector2i c = cellOf(p.xy);
       if (!inBox(c) || !is_changed[index(c)])
       {

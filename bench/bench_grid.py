@@ -22,7 +22,10 @@ Per cloud size, in one run:
   binary is $SPARSE_NAV_OCTOMAP_PEER, else one built by catkin, else compiled here with g++.
 - incremental update when 1% of the points change: measured only when ``build_grid --help``
   lists ``--update FILE2`` (process FILE, then FILE2 on the same pipeline; the JSON then holds
-  ``"update": {"stages_ms": .., "total_ms": ..}``); otherwise reported as not exposed.
+  ``"update": {"stages_ms": .., "total_ms": ..}``); otherwise reported as not exposed. "update"
+  is that first update after the build; "steady" the median of the updates after it, when
+  ``--repeat-update N`` is listed (back to FILE and again to FILE2, N times: each changes the
+  same 1% of the points, as a map refreshed again and again sees it).
 
 The build_grid binary is $SPARSE_NAV_BUILD_GRID, else <repo>/build/ws/devel/lib/sparse_nav/
 build_grid, else <repo>/build/ws_core/devel/lib/sparse_nav/build_grid; without one the bench
@@ -287,27 +290,41 @@ def run_ours(binary, csv, tmp, runs):
 
 
 def update_interface(binary):
-    """True when build_grid's --help lists --update (incremental update of a second file)."""
+    """(--update listed, --repeat-update listed) in build_grid's --help."""
     proc = subprocess.run([binary, "--help"], capture_output=True, text=True, timeout=60)
-    return "--update" in proc.stdout + proc.stderr
+    text = proc.stdout + proc.stderr
+    return "--update" in text, "--repeat-update" in text
 
 
-def run_update(binary, csv, changed_csv, tmp, runs):
-    """Median incremental update ms of build_grid's --update, or a reason string."""
-    totals, rebuilds = [], []
+REPEATED_UPDATES = 10       # build_grid --repeat-update: updates after the first, each way
+
+
+def run_update(binary, csv, changed_csv, tmp, runs, repeat):
+    """Median incremental update ms of build_grid's --update, or a reason string; with `repeat`
+    also the median of the updates after the first ("steady_update_ms")."""
+    totals, rebuilds, steady = [], [], []
     for i in range(runs):
-        out = run_json([binary, csv, "--update", changed_csv,
-                        "--out", os.path.join(tmp, f"upd_{i}"), "--up-axis", "z",
-                        "--resolution", str(RESOLUTION_M), "--alpha", str(ALPHA_M), "--json"])
+        cmd = [binary, csv, "--update", changed_csv,
+               "--out", os.path.join(tmp, f"upd_{i}"), "--up-axis", "z",
+               "--resolution", str(RESOLUTION_M), "--alpha", str(ALPHA_M), "--json"]
+        if repeat:
+            cmd += ["--repeat-update", str(REPEATED_UPDATES)]
+        out = run_json(cmd)
         update = out.get("update")
         if not isinstance(update, dict) or "stages_ms" not in update:
             return "build_grid --update printed no \"update\": {\"stages_ms\": ..} object"
         stages = update["stages_ms"]
         totals.append(sum(stages.values()))
         rebuilds.append(sum(v for k, v in stages.items() if k not in ("read", "write")))
-    return {"total_ms": round(statistics.median(totals), 3),
-            "update_ms": round(statistics.median(rebuilds), 3),
-            "runs_update_ms": [round(v, 3) for v in rebuilds]}
+        if repeat and update.get("repeated_ms"):
+            steady.append(statistics.median(update["repeated_ms"]))
+    result = {"total_ms": round(statistics.median(totals), 3),
+              "update_ms": round(statistics.median(rebuilds), 3),
+              "runs_update_ms": [round(v, 3) for v in rebuilds]}
+    if steady:
+        result["steady_update_ms"] = round(statistics.median(steady), 3)
+        result["runs_steady_update_ms"] = [round(v, 3) for v in steady]
+    return result
 
 
 def run_peer(binary, csv, runs):
@@ -403,12 +420,16 @@ def print_table(rows):
                   f"map (less read) {_fmt_ms(peer['map_ms'])} ms")
         upd = row.get("update")
         if isinstance(upd, dict):
+            steady = upd.get("steady_update_ms")
             print(f"  incremental update, {CHANGED_FRACTION:.0%} of the points changed: "
-                  f"{_fmt_ms(upd['update_ms'])} ms")
+                  f"{_fmt_ms(upd['update_ms'])} ms the first after the build"
+                  + (f", {_fmt_ms(steady)} ms the median of the {2 * REPEATED_UPDATES} after it"
+                     if steady is not None else ""))
     print("\nsummary (ms). ours: rebuild, i.e. build_grid less reading the file and writing the"
           "\nmaps; grid: its slice and grid stages alone; x: the other's time / ours (above 1: we"
-          "\nare faster); update: incremental update after 1% of the points changed")
-    print(f"{'points':>9} {'ours':>8} {'grid':>7} {'update':>8} {'seed004':>9} {'x seed':>7} "
+          "\nare faster); update: incremental update after 1% of the points changed, the first"
+          "\nafter the build; steady: the median of those after it")
+    print(f"{'points':>9} {'ours':>8} {'grid':>7} {'update':>8} {'steady':>7} {'seed004':>9} {'x seed':>7} "
           f"{'x seed/grid':>11} {'octomap':>8} {'x octo':>7}")
     for row in rows:
         ours = row.get("ours") or {}
@@ -424,6 +445,7 @@ def print_table(rows):
         ratios = row.get("ratios", {})
         print(f"{row['n_points']:>9} {_fmt_ms(ours.get('rebuild_ms')):>8} "
               f"{_fmt_ms(ours.get('grid_stages_ms')):>7} {_fmt_ms(upd.get('update_ms')):>8} "
+              f"{_fmt_ms(upd.get('steady_update_ms')):>7} "
               f"{base_s:>9} {ratios.get('seed004_over_ours') or '-':>7} "
               f"{ratios.get('seed004_over_ours_grid_stages') or '-':>11} "
               f"{_fmt_ms(peer.get('map_ms')):>8} {ratios.get('octomap_over_ours') or '-':>7}")
@@ -453,7 +475,7 @@ def main(argv=None):
     print(f"bench_grid: build_grid = {binary}")
     print("bench_grid: data: synthetic clouds generated here (seed "
           f"{CLOUD_SEED}); no data from ../shared is used")
-    has_update = update_interface(binary)
+    has_update, has_repeat = update_interface(binary)
     if BASELINE_MISSING:
         print(f"bench_grid: seed 004 baseline {BASELINE_MISSING}", file=sys.stderr)
     t_start = time.perf_counter()
@@ -483,7 +505,7 @@ def main(argv=None):
                 changed = os.path.join(tmp, f"cloud_{n}_changed.csv")
                 write_csv(changed, change_cloud(cloud))
                 try:
-                    row["update"] = run_update(binary, csv, changed, tmp, args.runs)
+                    row["update"] = run_update(binary, csv, changed, tmp, args.runs, has_repeat)
                 except RuntimeError as err:
                     row["update"] = str(err)
             else:

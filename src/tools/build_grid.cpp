@@ -7,6 +7,7 @@
 // polygons). Exit status: 0 ok, 2 bad input or no floor, 1 cannot write the outputs. The defaults
 // are those of the core Config structs, which config/*.yaml repeat for the nodelets.
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -71,6 +72,8 @@ std::string usage()
       "                          start at the nearest one (default: the origin, ORB-SLAM's first camera)\n"
       "  --update FILE2          after FILE, process FILE2 (the changed cloud) as an incremental\n"
       "                          update of the same pipeline; the outputs show the updated grid\n"
+      "  --repeat-update N       with --update, then go back to FILE and again to FILE2 N times,\n"
+      "                          each an update; \"update\" gains their times (\"repeated_ms\")\n"
       "  --json                  print {\"n_points\", \"stages_ms\", \"total_ms\", floor, grid} on stdout,\n"
       "                          with --update also \"update\": {\"stages_ms\", \"total_ms\", ..}\n",
       d.grid.resolution_m, d.ground.floor.max_tilt_deg, d.ground.floor.distance_threshold_m, d.ground.floor.max_planes,
@@ -83,6 +86,7 @@ struct Args
 {
   std::string file;
   std::string update;
+  int repeat_update = 0;
   std::string out;
   bool json = false;
   bool save_octree = false;
@@ -125,6 +129,8 @@ Args parseArgs(int argc, char** argv)
       a.out = value();
     else if (arg == "--update")
       a.update = value();
+    else if (arg == "--repeat-update")
+      a.repeat_update = std::max(0, std::atoi(value().c_str()));
     else if (arg == "--camera")
     {
       std::string v = value();
@@ -401,6 +407,7 @@ int main(int argc, char** argv)
 
   // The changed cloud as an incremental update of the same pipeline.
   sparse_nav::GridPipelineResult update;
+  std::vector<double> repeated_ms;
   if (!args.update.empty())
   {
     const auto t_read2 = std::chrono::steady_clock::now();
@@ -418,6 +425,18 @@ int main(int argc, char** argv)
     {
       std::cerr << "build_grid: --update " << args.update << ": " << update.status << "\n";
       return 2;
+    }
+    // Updates after the first, as a map refreshed again and again sees them: back to FILE, then
+    // FILE2 again, each differing from the one before by the same points.
+    for (int k = 0; k < 2 * args.repeat_update; ++k)
+    {
+      const sparse_nav::GridPipelineResult again = pipeline.process(k % 2 == 0 ? file.points : file2.points, args.cameras);
+      if (!again.ok)
+      {
+        std::cerr << "build_grid: --repeat-update: " << again.status << "\n";
+        return 2;
+      }
+      repeated_ms.push_back(again.total_ms);
     }
   }
   std::map<std::string, double>& last_stages = args.update.empty() ? result.stages_ms : update.stages_ms;
@@ -491,7 +510,12 @@ int main(int argc, char** argv)
            << ", \"tiles\": " << (grid.width / args.config.grid.tile_size_cells) * (grid.height / args.config.grid.tile_size_cells)
            << ", \"changed_points\": " << update.n_changed_points << ", \"density_counted\": " << update.density.n_counted
            << ", \"octree_new_voxels\": " << update.octree.n_new_voxels << ", \"octree_rays\": " << update.octree.n_rays
-           << ", \"obstacles\": " << update.n_obstacles << ", \"freed\": " << update.n_freed << "}";
+           << ", \"obstacles\": " << update.n_obstacles << ", \"freed\": " << update.n_freed << ", \"repeated_ms\": [";
+      for (std::size_t k = 0; k < repeated_ms.size(); ++k)
+      {
+        json << (k ? ", " : "") << repeated_ms[k];
+      }
+      json << "]}";
     }
     json << ", \"filtered\": {\"guard_out\": " << result.guard.n_out << ", \"density_out\": " << result.density.n_out
          << ", \"voxel_out\": " << result.voxel.n_out << ", \"obstacles\": " << result.n_obstacles

@@ -107,3 +107,19 @@ def test_non_finite_rows_are_dropped_and_counted(tmp_path):
     assert out.returncode == 0, out.stderr
     r = json.loads(out.stdout)
     assert r["n_non_finite"] == 25 and r["floor"]["found"]
+
+
+def test_an_update_looks_at_the_moved_points_and_repeats_on_request(tmp_path):
+    cloud = room_cloud()
+    moved = cloud.copy()
+    moved[:40] += np.random.default_rng(5).normal(0, 0.03, (40, 3))   # 40 wall points move
+    first = write(tmp_path / "room.csv", cloud)
+    second = write(tmp_path / "moved.csv", moved)
+    out = run(first, "--out", tmp_path / "room", "--up-axis", "z", "--camera", "2.5,2,1.2",
+              "--update", second, "--repeat-update", 2, "--json")
+    assert out.returncode == 0, out.stderr
+    update = json.loads(out.stdout)["update"]
+    assert update["changed_points"] == 40
+    assert update["full_rebuild"] is False
+    assert update["recomputed_tiles"] < update["tiles"]
+    assert len(update["repeated_ms"]) == 4 and all(t > 0 for t in update["repeated_ms"])

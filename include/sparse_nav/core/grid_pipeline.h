@@ -65,9 +65,10 @@ struct GridPipelineResult
  * cloud_filter (guard, voxel grid), ground_mapper and grid_builder run the same three stages. Calling process() again
  * with a changed cloud is an incremental update: the points that differ from the last cloud at the
  * same place in the list (SLAM map points keep their order; new ones are appended) change only
- * their voxels, the density filter counts again only around the voxels that changed, the octree
- * casts rays only for new points and the grid recomputes only the tiles whose obstacles or rays
- * changed. Each of these gives what a rebuild from scratch on the same cloud gives. Never throws on bad data;
+ * their voxels; GroundMapper, given which voxels stayed, counts density again only around the
+ * changed ones, casts octree rays and counts rays passing under obstacles only for what changed;
+ * GridBuilder takes the obstacles and rays that went and came and recomputes only the tiles
+ * within reach of them. Each of these gives what a rebuild from scratch on the same cloud gives. Never throws on bad data;
  * problems are reported in the result.
  */
 class GridPipeline

@@ -224,7 +224,6 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     cells.emplace_back(static_cast<std::int64_t>(std::floor(p.y() / res)),
                        static_cast<std::int64_t>(std::floor(p.x() / res)));
   }
-  const std::vector<std::pair<std::int64_t, std::int64_t>> cells_with_repeats = cells;
   sortUniqueCells(cells);
 
   std::vector<Ray> new_rays;
@@ -420,9 +419,14 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   ray_count_.swap(new_counts);
   // How many obstacle points each cell holds: what an update by a change counts down and up.
   obstacle_count_.assign(grid_.data.size(), 0);
-  for (const auto& c : cells_with_repeats)
+  for (const auto& p : obstacles)
   {
-    ++obstacle_count_[static_cast<std::size_t>(c.first - cell0_y_) * grid_.width + static_cast<std::size_t>(c.second - cell0_x_)];
+    if (p.allFinite() && std::abs(p.x()) <= limit && std::abs(p.y()) <= limit)
+    {
+      const std::int64_t x = static_cast<std::int64_t>(std::floor(p.x() / res)) - cell0_x_;
+      const std::int64_t y = static_cast<std::int64_t>(std::floor(p.y() / res)) - cell0_y_;
+      ++obstacle_count_[static_cast<std::size_t>(y) * grid_.width + static_cast<std::size_t>(x)];
+    }
   }
   return finish(write, full, result);
 }

@@ -30,6 +30,38 @@ private:
   Clock::time_point last_;
 };
 
+/// The part of the ray from a camera (position c, height hc above the floor) to point p (height h)
+/// that lies between the heights z_lo and z_hi, projected to x-y; false when none does.
+bool bandRay(const Eigen::Vector3d& c, double hc, const Eigen::Vector3f& p, double h, double z_lo, double z_hi,
+             FreeRay& ray)
+{
+  const double dh = h - hc;
+  double t0 = 0.0, t1 = 1.0;
+  if (std::abs(dh) < 1e-12)
+  {
+    if (hc < z_lo || hc > z_hi)
+    {
+      return false;
+    }
+  }
+  else
+  {
+    double ta = (z_lo - hc) / dh, tb = (z_hi - hc) / dh;
+    if (ta > tb)
+    {
+      std::swap(ta, tb);
+    }
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    if (t0 > t1)
+    {
+      return false;
+    }
+  }
+  const Eigen::Vector3d q = p.cast<double>();
+  ray = FreeRay{ (c + t0 * (q - c)).head<2>(), (c + t1 * (q - c)).head<2>() };
+  return true;
+}
 }  // namespace
 
 void GroundMapperConfig::validate() const
@@ -282,17 +314,15 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   std::vector<PassRay>& pass_rays = pass_rays_;
   std::vector<PassCandidate>& candidates = candidates_;
   std::vector<std::size_t>& candidate_index = candidate_index_;
-  std::vector<std::int32_t>& ray_of = ray_of_;  // index into r.rays
   pass_rays.resize(points.size());
   candidates.clear();
   candidate_index.clear();
-  ray_of.assign(points.size(), -1);
   r.obstacles.reserve(points.size());
   r.rays.reserve(points.size());
+  FreeRay ray;
   for (std::size_t i = 0; i < points.size(); ++i)
   {
     const double h = heights[i];
-    const bool same = continues && dense_previous[i] >= 0;
     switch (kind[i])
     {
       case kFloorBand:
@@ -313,45 +343,10 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
         candidate_index.push_back(i);
     }
     pass_rays[i] = PassRay{ static_cast<std::uint32_t>(nearest[i]), out[i].head<2>().cast<double>(), h };
-    if (same)
+    if (bandRay(r.cameras[nearest[i]], cam_height[nearest[i]], out[i], h, z_lo, z_hi, ray))
     {
-      const std::int32_t last_ray = last_ray_of_[static_cast<std::size_t>(dense_previous[i])];
-      if (last_ray >= 0)
-      {
-        ray_of[i] = static_cast<std::int32_t>(r.rays.size());
-        r.rays.push_back(last_rays_[static_cast<std::size_t>(last_ray)]);
-      }
-      continue;
+      r.rays.push_back(ray);
     }
-    // The part of the ray from the nearest camera that lies inside the band, in heights.
-    const double hc = cam_height[nearest[i]];
-    const double dh = h - hc;
-    double t0 = 0.0, t1 = 1.0;
-    if (std::abs(dh) < 1e-12)
-    {
-      if (hc < z_lo || hc > z_hi)
-      {
-        continue;
-      }
-    }
-    else
-    {
-      double ta = (z_lo - hc) / dh, tb = (z_hi - hc) / dh;
-      if (ta > tb)
-      {
-        std::swap(ta, tb);
-      }
-      t0 = std::max(t0, ta);
-      t1 = std::min(t1, tb);
-      if (t0 > t1)
-      {
-        continue;
-      }
-    }
-    const Eigen::Vector3d& c = r.cameras[nearest[i]];
-    const Eigen::Vector3d p = out[i].cast<double>();
-    ray_of[i] = static_cast<std::int32_t>(r.rays.size());
-    r.rays.push_back(FreeRay{ (c + t0 * (p - c)).head<2>(), (c + t1 * (p - c)).head<2>() });
   }
   timer.lap("slice");
 
@@ -400,10 +395,11 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
       }
       for (const std::size_t k : gone)
       {
-        removed_rays.push_back(PassRay{ last_camera_[k], last_xy_[k], last_h_[k] });
+        const Eigen::Vector2d xy = last_out_[k].head<2>().cast<double>();
+        removed_rays.push_back(PassRay{ last_camera_[k], xy, last_h_[k] });
         if (last_kind_[k] == kCandidate)
         {
-          removed_candidates.push_back(PassCandidate{ last_xy_[k], last_h_[k] });
+          removed_candidates.push_back(PassCandidate{ xy, last_h_[k] });
         }
       }
       counted = pass_count_.update(cam_xy, cam_height, removed_rays, added_rays, removed_candidates, added_candidates,
@@ -448,20 +444,20 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
       {
         r.obstacles_added_xy.push_back(pass_rays[i].end_xy);
       }
-      if (ray_of[i] >= 0)
+      if (bandRay(r.cameras[nearest[i]], cam_height[nearest[i]], out[i], heights[i], z_lo, z_hi, ray))
       {
-        r.rays_added.push_back(r.rays[static_cast<std::size_t>(ray_of[i])]);
+        r.rays_added.push_back(ray);
       }
     }
     for (const std::size_t k : gone)
     {
       if (last_obstacle_[k])
       {
-        r.obstacles_removed_xy.push_back(last_xy_[k]);
+        r.obstacles_removed_xy.push_back(last_out_[k].head<2>().cast<double>());
       }
-      if (last_ray_of_[k] >= 0)
+      if (bandRay(r.cameras[last_camera_[k]], cam_height[last_camera_[k]], last_out_[k], last_h_[k], z_lo, z_hi, ray))
       {
-        r.rays_removed.push_back(last_rays_[static_cast<std::size_t>(last_ray_of_[k])]);
+        r.rays_removed.push_back(ray);
       }
     }
   }
@@ -470,16 +466,12 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   last_cameras_ = cams_in;
   last_kind_.swap(kind_);
   last_obstacle_.swap(obstacle_);
-  last_ray_of_.swap(ray_of_);
-  last_rays_ = r.rays;
+  last_out_.swap(out_);
+  last_h_.swap(heights_);
   last_camera_.resize(points.size());
-  last_xy_.resize(points.size());
-  last_h_.resize(points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
   {
-    last_camera_[i] = pass_rays[i].camera;
-    last_xy_[i] = pass_rays[i].end_xy;
-    last_h_[i] = heights[i];
+    last_camera_[i] = static_cast<std::uint32_t>(nearest[i]);
   }
   timer.lap("clear");
   r.ok = true;

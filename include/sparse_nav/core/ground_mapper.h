@@ -142,14 +142,13 @@ private:
   std::vector<char> last_keep_;   // its density flags; empty when the filter did not run on it
   std::vector<std::int32_t> last_dense_of_input_;  // per point of last_input_, its index among those kept, or -1
   std::vector<Eigen::Vector3d> last_cameras_;      // the cameras of the last call, input frame
-  // Per point kept by the last call that got through: kind, camera, map x-y [m], height [m].
+  // Per point kept by the last call that got through: kind, obstacle or not, camera, output-frame
+  // position [m], height above the floor [m]; enough to take back its ray, candidacy and obstacle.
   std::vector<char> last_kind_;
-  std::vector<std::uint32_t> last_camera_;
-  std::vector<Eigen::Vector2d> last_xy_;
-  std::vector<double> last_h_;
   std::vector<char> last_obstacle_;
-  std::vector<std::int32_t> last_ray_of_;  // index into last_rays_, or -1 (no part inside the band)
-  std::vector<FreeRay> last_rays_;
+  std::vector<std::uint32_t> last_camera_;
+  PointList last_out_;
+  std::vector<double> last_h_;
   // Scratch of process(), kept for its capacity.
   PointList points_;
   PointList out_;
@@ -159,7 +158,6 @@ private:
   std::vector<double> heights_;
   std::vector<char> kind_;
   std::vector<char> obstacle_;
-  std::vector<std::int32_t> ray_of_;
   std::vector<PassRay> pass_rays_;
   std::vector<PassCandidate> candidates_;
   std::vector<std::size_t> candidate_index_;

@@ -311,10 +311,8 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     }
   }
   // Scratch kept between calls: its pages are reused rather than faulted in again.
-  std::vector<PassRay>& pass_rays = pass_rays_;
   std::vector<PassCandidate>& candidates = candidates_;
   std::vector<std::size_t>& candidate_index = candidate_index_;
-  pass_rays.resize(points.size());
   candidates.clear();
   candidate_index.clear();
   r.obstacles.reserve(points.size());
@@ -342,7 +340,6 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
         candidates.push_back(PassCandidate{ out[i].head<2>().cast<double>(), h });
         candidate_index.push_back(i);
     }
-    pass_rays[i] = PassRay{ static_cast<std::uint32_t>(nearest[i]), out[i].head<2>().cast<double>(), h };
     if (bandRay(r.cameras[nearest[i]], cam_height[nearest[i]], out[i], h, z_lo, z_hi, ray))
     {
       r.rays.push_back(ray);
@@ -370,6 +367,11 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
       }
     }
   }
+  // Each point's ray from its camera, made when asked for rather than stored.
+  auto rayOf = [&](std::size_t i) {
+    return PassRay{ static_cast<std::uint32_t>(nearest[i]), out[i].head<2>().cast<double>(), heights[i] };
+  };
+  const PassRaySource all_rays{ points.size(), rayOf };
   bool counted = true;
   if (config_.clear_hit_min_rays > 0)
   {
@@ -386,10 +388,10 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
       {
         if (dense_previous[i] < 0)
         {
-          added_rays.push_back(pass_rays[i]);
+          added_rays.push_back(rayOf(i));
           if (kind[i] == kCandidate)
           {
-            added_candidates.push_back(PassCandidate{ pass_rays[i].end_xy, heights[i] });
+            added_candidates.push_back(PassCandidate{ added_rays.back().end_xy, heights[i] });
           }
         }
       }
@@ -403,11 +405,11 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
         }
       }
       counted = pass_count_.update(cam_xy, cam_height, removed_rays, added_rays, removed_candidates, added_candidates,
-                                   pass_rays, candidates);
+                                   all_rays, candidates);
     }
     else
     {
-      counted = pass_count_.build(cam_xy, cam_height, pass_rays, candidates);
+      counted = pass_count_.build(cam_xy, cam_height, all_rays, candidates);
     }
   }
   const std::uint32_t min_rays = static_cast<std::uint32_t>(config_.clear_hit_min_rays);
@@ -436,13 +438,13 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
       {
         if (obstacle[i] != last_obstacle_[static_cast<std::size_t>(k)])
         {
-          (obstacle[i] ? r.obstacles_added_xy : r.obstacles_removed_xy).push_back(pass_rays[i].end_xy);
+          (obstacle[i] ? r.obstacles_added_xy : r.obstacles_removed_xy).push_back(out[i].head<2>().cast<double>());
         }
         continue;
       }
       if (obstacle[i])
       {
-        r.obstacles_added_xy.push_back(pass_rays[i].end_xy);
+        r.obstacles_added_xy.push_back(out[i].head<2>().cast<double>());
       }
       if (bandRay(r.cameras[nearest[i]], cam_height[nearest[i]], out[i], heights[i], z_lo, z_hi, ray))
       {

@@ -218,7 +218,7 @@ RayPassCount::IndexedRay RayPassCount::indexed(const PassRay& ray) const
   return IndexedRay{ angleKey(pseudoAngle(d.x(), d.y())), b.x(), b.y(), ray.end_h, false };
 }
 
-void RayPassCount::indexRays(const std::vector<PassRay>& rays)
+void RayPassCount::indexRays(const PassRaySource& rays)
 {
   // Bucketed by direction in two passes (count, place): cheaper than sorting, and a window of
   // directions is a run of buckets.
@@ -226,14 +226,15 @@ void RayPassCount::indexRays(const std::vector<PassRay>& rays)
   index_.assign(camera_xy_.size(), CameraIndex());
   std::vector<IndexedRay> entries;
   std::vector<std::uint32_t> camera_of;
-  entries.reserve(rays.size());
-  camera_of.reserve(rays.size());
+  entries.reserve(rays.size);
+  camera_of.reserve(rays.size);
   for (auto& ci : index_)
   {
     ci.start.assign(kBuckets + 1, 0);
   }
-  for (const auto& r : rays)
+  for (std::size_t i = 0; i < rays.size; ++i)
   {
+    const PassRay r = rays.at(i);
     if (r.camera < camera_ok_.size() && camera_ok_[r.camera] && inReach(r.end_xy))
     {
       const IndexedRay e = indexed(r);
@@ -266,7 +267,7 @@ void RayPassCount::indexRays(const std::vector<PassRay>& rays)
 }
 
 bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const std::vector<double>& camera_h,
-                         const std::vector<PassRay>& rays, const std::vector<PassCandidate>& candidates)
+                         const PassRaySource& rays, const std::vector<PassCandidate>& candidates)
 {
   last_was_build_ = true;
   n_recounted_ = 0;
@@ -344,9 +345,10 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
   };
   constexpr int kCellOffset = 1 << 27;
   std::vector<End> ends;
-  ends.reserve(rays.size());
-  for (const auto& r : rays)
+  ends.reserve(rays.size);
+  for (std::size_t i = 0; i < rays.size; ++i)
   {
+    const PassRay r = rays.at(i);
     if (r.camera < camera_ok_.size() && camera_ok_[r.camera] && inReach(r.end_xy))
     {
       const Eigen::Vector2i e = cellOf(r.end_xy) + Eigen::Vector2i::Constant(kCellOffset);
@@ -376,7 +378,7 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
 bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const std::vector<double>& camera_h,
                           const std::vector<PassRay>& removed_rays, const std::vector<PassRay>& added_rays,
                           const std::vector<PassCandidate>& removed_candidates,
-                          const std::vector<PassCandidate>& added_candidates, const std::vector<PassRay>& rays,
+                          const std::vector<PassCandidate>& added_candidates, const PassRaySource& rays,
                           const std::vector<PassCandidate>& candidates)
 {
   const bool same_cameras = camera_xy == camera_xy_ && camera_h == camera_h_;

@@ -339,7 +339,7 @@ std::vector<std::uint32_t> builtCounts(const std::vector<Eigen::Vector2d>& cam_x
                                        const std::vector<sparse_nav::PassCandidate>& candidates)
 {
   sparse_nav::RayPassCount fresh;
-  EXPECT_TRUE(fresh.build(cam_xy, cam_h, rays, candidates));
+  EXPECT_TRUE(fresh.build(cam_xy, cam_h, sparse_nav::PassRaySource::of(rays), candidates));
   std::vector<std::uint32_t> counts;
   for (const auto& c : candidates)
   {
@@ -398,7 +398,7 @@ TEST(RayPassCount, UpdatesGiveTheCountsOfABuildFromNothing)
   };
   candidates = candidatesOf();
   sparse_nav::RayPassCount count;
-  ASSERT_TRUE(count.build(cam_xy, cam_h, rays, candidates));
+  ASSERT_TRUE(count.build(cam_xy, cam_h, sparse_nav::PassRaySource::of(rays), candidates));
   for (int round = 0; round < 8; ++round)  // past a quarter of the index stale: it is sorted again
   {
     std::vector<sparse_nav::PassRay> removed_rays, added_rays;
@@ -423,8 +423,8 @@ TEST(RayPassCount, UpdatesGiveTheCountsOfABuildFromNothing)
       }
     }
     candidates = candidatesOf();
-    ASSERT_TRUE(count.update(cam_xy, cam_h, removed_rays, added_rays, removed_candidates, added_candidates, rays,
-                             candidates));
+    ASSERT_TRUE(count.update(cam_xy, cam_h, removed_rays, added_rays, removed_candidates, added_candidates,
+                             sparse_nav::PassRaySource::of(rays), candidates));
     EXPECT_FALSE(count.lastWasBuild()) << "round " << round;
     EXPECT_GT(count.numRecounted(), 0u);
     const std::vector<std::uint32_t> expected = builtCounts(cam_xy, cam_h, rays, candidates);
@@ -441,7 +441,8 @@ TEST(RayPassCount, UpdatesGiveTheCountsOfABuildFromNothing)
   const sparse_nav::PassRay far{ 0, Eigen::Vector2d(9.0, 2.0), 1.0 };
   rays.push_back(far);
   candidates.push_back(sparse_nav::PassCandidate{ far.end_xy, far.end_h });
-  ASSERT_TRUE(count.update(cam_xy, cam_h, {}, { far }, {}, { candidates.back() }, rays, candidates));
+  ASSERT_TRUE(count.update(cam_xy, cam_h, {}, { far }, {}, { candidates.back() }, sparse_nav::PassRaySource::of(rays),
+                           candidates));
   EXPECT_TRUE(count.lastWasBuild());
 }
 

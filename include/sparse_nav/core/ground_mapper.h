@@ -158,7 +158,6 @@ private:
   std::vector<double> heights_;
   std::vector<char> kind_;
   std::vector<char> obstacle_;
-  std::vector<PassRay> pass_rays_;
   std::vector<PassCandidate> candidates_;
   std::vector<std::size_t> candidate_index_;
 };

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -25,6 +26,20 @@ struct PassRay
   std::uint32_t camera = 0;
   Eigen::Vector2d end_xy = Eigen::Vector2d::Zero();
   double end_h = 0.0;
+};
+
+/// @brief All the rays, as a count and the ray at each index: a caller that holds the points
+/// computes rays on demand rather than storing a copy of them (32 bytes per point).
+struct PassRaySource
+{
+  std::size_t size = 0;
+  std::function<PassRay(std::size_t)> at;
+
+  /// @brief The rays of a list (which must outlive the source).
+  static PassRaySource of(const std::vector<PassRay>& rays)
+  {
+    return PassRaySource{ rays.size(), [&rays](std::size_t i) { return rays[i]; } };
+  }
 };
 
 /// @brief An obstacle candidate: x-y [m] and height above the floor [m].
@@ -57,7 +72,7 @@ public:
    *         beyond the fixed-point range (the count is then 0 everywhere)
    */
   bool build(const std::vector<Eigen::Vector2d>& camera_xy, const std::vector<double>& camera_h,
-             const std::vector<PassRay>& rays, const std::vector<PassCandidate>& candidates);
+             const PassRaySource& rays, const std::vector<PassCandidate>& candidates);
 
   /**
    * @brief Applies the rays and candidates that went and came since the last build() or update().
@@ -68,7 +83,7 @@ public:
   bool update(const std::vector<Eigen::Vector2d>& camera_xy, const std::vector<double>& camera_h,
               const std::vector<PassRay>& removed_rays, const std::vector<PassRay>& added_rays,
               const std::vector<PassCandidate>& removed_candidates, const std::vector<PassCandidate>& added_candidates,
-              const std::vector<PassRay>& rays, const std::vector<PassCandidate>& candidates);
+              const PassRaySource& rays, const std::vector<PassCandidate>& candidates);
 
   /// @brief Rays counted at the cell of xy (0 outside the box or without candidates there).
   std::uint32_t count(const Eigen::Vector2d& xy) const;
@@ -121,7 +136,7 @@ private:
   /// Whether the ray from camera cell a to end cell b visits cell k at a counted step; s is that step.
   bool visits(const Eigen::Vector2i& a, const Eigen::Vector2i& b, const Eigen::Vector2i& k, int& s) const;
   std::uint32_t recount(const Eigen::Vector2i& k) const;
-  void indexRays(const std::vector<PassRay>& rays);
+  void indexRays(const PassRaySource& rays);
   IndexedRay indexed(const PassRay& ray) const;
 
   RayPassConfig config_;

@@ -353,8 +353,6 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     std::sort(v.begin(), v.end());
   }
 
-  const double alpha_cells = alpha_m_ / res;
-  const int margin = static_cast<int>(std::ceil((2.0 * alpha_cells + 2.0) / tile));
   write.assign(static_cast<std::size_t>(n_tiles), 0);
   // Calls visit(col, row) for the grid cells of a ray, which always lies inside the grid: its end
   // cells are part of the extent the grid was sized to.
@@ -378,23 +376,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     {
       dirty_occ[static_cast<std::size_t>(t)] = tile_cells[static_cast<std::size_t>(t)] != tile_cells_[static_cast<std::size_t>(t)];
     }
-    for (int ty = 0; ty < tiles_y_; ++ty)
-    {
-      for (int tx = 0; tx < tiles_x_; ++tx)
-      {
-        if (!dirty_occ[static_cast<std::size_t>(ty * tiles_x_ + tx)])
-        {
-          continue;
-        }
-        for (int y = std::max(0, ty - margin); y <= std::min(tiles_y_ - 1, ty + margin); ++y)
-        {
-          for (int x = std::max(0, tx - margin); x <= std::min(tiles_x_ - 1, tx + margin); ++x)
-          {
-            write[static_cast<std::size_t>(y * tiles_x_ + x)] = 1;
-          }
-        }
-      }
-    }
+    markAroundDirty(dirty_occ, write);
     std::vector<Ray> removed, added;
     std::set_difference(rays_.begin(), rays_.end(), new_rays.begin(), new_rays.end(), std::back_inserter(removed));
     std::set_difference(new_rays.begin(), new_rays.end(), rays_.begin(), rays_.end(), std::back_inserter(added));
@@ -634,24 +616,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     rays_.swap(merged_rays);
     ray_count_.swap(merged_counts);
   }
-  const int margin = static_cast<int>(std::ceil((2.0 * alpha_m_ / res + 2.0) / tile));
-  for (int ty = 0; ty < tiles_y_; ++ty)
-  {
-    for (int tx = 0; tx < tiles_x_; ++tx)
-    {
-      if (!dirty_occ[static_cast<std::size_t>(ty * tiles_x_ + tx)])
-      {
-        continue;
-      }
-      for (int wy = std::max(0, ty - margin); wy <= std::min(tiles_y_ - 1, ty + margin); ++wy)
-      {
-        for (int wx = std::max(0, tx - margin); wx <= std::min(tiles_x_ - 1, tx + margin); ++wx)
-        {
-          write[static_cast<std::size_t>(wy * tiles_x_ + wx)] = 1;
-        }
-      }
-    }
-  }
+  markAroundDirty(dirty_occ, write);
   result.n_rays = rays_.size();
   result.n_obstacle_cells = 0;
   for (const auto& ids : tile_cells_)
@@ -661,11 +626,38 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   return finish(write, false, result);
 }
 
+int GridBuilder::marginTiles() const
+{
+  return static_cast<int>(std::ceil((2.0 * alpha_m_ / config_.resolution_m + 2.0) / config_.tile_size_cells));
+}
+
+void GridBuilder::markAroundDirty(const std::vector<std::uint8_t>& dirty, std::vector<std::uint8_t>& write) const
+{
+  const int margin = marginTiles();
+  for (int ty = 0; ty < tiles_y_; ++ty)
+  {
+    for (int tx = 0; tx < tiles_x_; ++tx)
+    {
+      if (!dirty[static_cast<std::size_t>(ty * tiles_x_ + tx)])
+      {
+        continue;
+      }
+      for (int y = std::max(0, ty - margin); y <= std::min(tiles_y_ - 1, ty + margin); ++y)
+      {
+        for (int x = std::max(0, tx - margin); x <= std::min(tiles_x_ - 1, tx + margin); ++x)
+        {
+          write[static_cast<std::size_t>(y * tiles_x_ + x)] = 1;
+        }
+      }
+    }
+  }
+}
+
 GridUpdate GridBuilder::finish(const std::vector<std::uint8_t>& write, bool full, GridUpdate result)
 {
   const int tile = config_.tile_size_cells;
   const int n_tiles = tiles_x_ * tiles_y_;
-  const int margin = static_cast<int>(std::ceil((2.0 * alpha_m_ / config_.resolution_m + 2.0) / tile));
+  const int margin = marginTiles();
 
   // One window: the bounding box of the tiles to write, plus the alpha-shape context margin.
   int wx0 = tiles_x_, wy0 = tiles_y_, wx1 = -1, wy1 = -1;

@@ -151,6 +151,10 @@ private:
   };
   void recomputeWindow(const Window& window, const std::vector<std::uint8_t>& write_tile, double alpha_m,
                        bool keep_shape);
+  /// Tiles of context an alpha shape needs around a tile (2 * alpha, and a cell of rounding).
+  int marginTiles() const;
+  /// Marks for writing every tile within marginTiles() of a dirty one.
+  void markAroundDirty(const std::vector<std::uint8_t>& dirty, std::vector<std::uint8_t>& write) const;
   /// Recomputes the tiles marked in write and fills in result's tiles and status.
   GridUpdate finish(const std::vector<std::uint8_t>& write, bool full, GridUpdate result);
   /// The ray's end cells, in canonical order; false when a coordinate is not finite or too large.

@@ -96,7 +96,8 @@ struct GroundMapperResult
  * build_grid (through GridPipeline) and the ground_mapper nodelet both run this object, so the
  * same cloud gives the same obstacles. The octree is kept across calls; only points in voxels it
  * has not seen cast rays (OctreeMap::insert). Given previous_index, process() continues from
- * its last call: points that stayed keep their camera, band and octree state, only the new ones
+ * its last call when the floor and the cameras are the same (else it starts over): points that
+ * stayed keep their camera, band and octree state, only the new ones
  * are looked up and inserted, the ray count changes by them alone (RayPassCount::update), and the
  * result says how its obstacles and rays differ from the last ones (for GridBuilder's update).
  */

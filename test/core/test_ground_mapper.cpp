@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <tuple>
 #include <random>
 #include <stdexcept>
@@ -527,4 +528,53 @@ TEST(GroundMapper, AnUpdateThroughACorrespondenceGivesWhatAFreshMapperGives)
   std::sort(a.begin(), a.end());
   std::sort(b.begin(), b.end());
   EXPECT_TRUE(a == b);
+}
+
+TEST(GridPipeline, UpdatesThroughEmptyAndBrokenCloudsStillEndOnTheGridOfARebuild)
+{
+  // The incremental state must survive clouds that stop the chain early (empty, all NaN) and
+  // clouds whose guard drops points mid-list (shifting every later point): whatever came before,
+  // the last update gives the grid a rebuild on the last cloud gives.
+  const PointList room = slamRoom(sparse_nav::test::makeRoom());
+  std::mt19937 rng(41);
+  std::normal_distribution<float> noise(0.0f, 0.03f);
+  auto moved = [&](PointList cloud, std::size_t every) {
+    for (std::size_t i = 0; i < cloud.size(); i += every)
+    {
+      if (cloud[i].y() < -0.2f)  // above the floor band: the floor stays the same
+      {
+        cloud[i] += Eigen::Vector3f(noise(rng), noise(rng), noise(rng));
+      }
+    }
+    return cloud;
+  };
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  PointList with_nans = moved(room, 53);
+  with_nans.insert(with_nans.begin() + 100, Eigen::Vector3f(nan, 0.0f, 1.0f));
+  with_nans.insert(with_nans.begin() + 2000, Eigen::Vector3f(1e9f, 0.0f, 1.0f));
+  const PointList last = moved(room, 37);
+  const std::vector<PointList> sequence{ room, PointList(), moved(room, 71), PointList(50, Eigen::Vector3f(nan, nan, nan)),
+                                         with_nans, moved(room, 97), last };
+
+  GridPipelineConfig cfg;
+  cfg.ground.floor.max_fit_points = 1000000;
+  GridPipeline incremental(cfg);
+  bool any_incremental = false;
+  for (const PointList& cloud : sequence)
+  {
+    const GridPipelineResult r = incremental.process(cloud, {});
+    EXPECT_EQ(r.ok, !cloud.empty() && cloud.front().allFinite()) << r.status;
+    any_incremental = any_incremental || (r.ok && !r.grid.full_rebuild);
+  }
+  EXPECT_TRUE(any_incremental);
+  GridPipeline fresh(cfg);
+  ASSERT_TRUE(fresh.process(last, {}).ok);
+  ASSERT_EQ(incremental.grid().width, fresh.grid().width);
+  ASSERT_EQ(incremental.grid().height, fresh.grid().height);
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < fresh.grid().data.size(); ++i)
+  {
+    differ += incremental.grid().data[i] != fresh.grid().data[i] ? 1 : 0;
+  }
+  EXPECT_EQ(differ, 0u);
 }

@@ -172,10 +172,13 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     {
       dense_of_input[i] = static_cast<std::int32_t>(points.size());
       points.push_back(input[i]);
-      const std::int32_t k = has_previous ? (*previous_index)[i] : -1;
-      dense_previous.push_back(k >= 0 && static_cast<std::size_t>(k) < last_dense_of_input_.size()
-                                   ? last_dense_of_input_[static_cast<std::size_t>(k)]
-                                   : -1);
+      if (has_previous)  // read only when this call continues from the last
+      {
+        const std::int32_t k = (*previous_index)[i];
+        dense_previous.push_back(k >= 0 && static_cast<std::size_t>(k) < last_dense_of_input_.size()
+                                     ? last_dense_of_input_[static_cast<std::size_t>(k)]
+                                     : -1);
+      }
     }
   }
   last_input_ = input;
@@ -398,7 +401,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
       for (const std::size_t k : gone)
       {
         const Eigen::Vector2d xy = last_out_[k].head<2>().cast<double>();
-        removed_rays.push_back(PassRay{ last_camera_[k], xy, last_h_[k] });
+        removed_rays.push_back(PassRay{ static_cast<std::uint32_t>(last_camera_[k]), xy, last_h_[k] });
         if (last_kind_[k] == kCandidate)
         {
           removed_candidates.push_back(PassCandidate{ xy, last_h_[k] });
@@ -470,11 +473,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   last_obstacle_.swap(obstacle_);
   last_out_.swap(out_);
   last_h_.swap(heights_);
-  last_camera_.resize(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i)
-  {
-    last_camera_[i] = static_cast<std::uint32_t>(nearest[i]);
-  }
+  last_camera_.swap(nearest_);
   timer.lap("clear");
   r.ok = true;
   char buf[320];

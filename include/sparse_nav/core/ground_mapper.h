@@ -147,7 +147,7 @@ private:
   // position [m], height above the floor [m]; enough to take back its ray, candidacy and obstacle.
   std::vector<char> last_kind_;
   std::vector<char> last_obstacle_;
-  std::vector<std::uint32_t> last_camera_;
+  std::vector<std::size_t> last_camera_;
   PointList last_out_;
   std::vector<double> last_h_;
   // Scratch of process(), kept for its capacity.

@@ -49,9 +49,9 @@ void bresenham(int x0, int y0, int x1, int y1, Visit visit)
 }
 
 /// Sorts rays (x0, y0, x1, y1 lexicographic) and drops repeats, counting each ray's copies in
-/// counts (parallel to the rays left). Rays within 65536 cells of each
-/// other, as in any real map, are packed into one 64-bit key in that same order and radix-sorted:
-/// a hundred thousand rays per cloud made std::sort the grid's largest cost.
+/// counts (parallel to the rays left). Rays within 65536 cells of each other, as in any real map,
+/// are packed into one 64-bit key in that same order and radix-sorted: a hundred thousand rays
+/// per cloud made std::sort the grid's largest cost.
 void sortUnique(std::vector<GridBuilder::Ray>& rays, std::vector<std::uint32_t>& counts)
 {
   counts.clear();

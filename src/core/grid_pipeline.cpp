@@ -1,7 +1,7 @@
 #include "sparse_nav/core/grid_pipeline.h"
 
-#include <chrono>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <exception>

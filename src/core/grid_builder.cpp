@@ -210,19 +210,16 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   GridUpdate result;
   const double res = config_.resolution_m;
   const int tile = config_.tile_size_cells;
-  // Reject coordinates whose cell index would not fit comfortably in 32 bits.
-  const double limit = 1e9 * res;
 
   std::vector<std::pair<std::int64_t, std::int64_t>> cells;  // (y, x) absolute
   cells.reserve(obstacles.size());
+  std::int64_t cx = 0, cy = 0;
   for (const auto& p : obstacles)
   {
-    if (!p.allFinite() || std::abs(p.x()) > limit || std::abs(p.y()) > limit)
+    if (toCell(p, cx, cy))
     {
-      continue;
+      cells.emplace_back(cy, cx);
     }
-    cells.emplace_back(static_cast<std::int64_t>(std::floor(p.y() / res)),
-                       static_cast<std::int64_t>(std::floor(p.x() / res)));
   }
   sortUniqueCells(cells);
 
@@ -403,33 +400,41 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   obstacle_count_.assign(grid_.data.size(), 0);
   for (const auto& p : obstacles)
   {
-    if (p.allFinite() && std::abs(p.x()) <= limit && std::abs(p.y()) <= limit)
+    if (toCell(p, cx, cy))
     {
-      const std::int64_t x = static_cast<std::int64_t>(std::floor(p.x() / res)) - cell0_x_;
-      const std::int64_t y = static_cast<std::int64_t>(std::floor(p.y() / res)) - cell0_y_;
-      ++obstacle_count_[static_cast<std::size_t>(y) * grid_.width + static_cast<std::size_t>(x)];
+      ++obstacle_count_[static_cast<std::size_t>(cy - cell0_y_) * grid_.width + static_cast<std::size_t>(cx - cell0_x_)];
     }
   }
   return finish(write, full, result);
 }
 
-bool GridBuilder::toRay(const FreeRay& r, Ray& out) const
+bool GridBuilder::toCell(const Eigen::Vector2d& p, std::int64_t& x, std::int64_t& y) const
 {
+  // Reject coordinates whose cell index would not fit comfortably in 32 bits.
   const double res = config_.resolution_m, limit = 1e9 * res;
-  if (!r.from.allFinite() || !r.to.allFinite() || r.from.cwiseAbs().maxCoeff() > limit || r.to.cwiseAbs().maxCoeff() > limit)
+  if (!p.allFinite() || std::abs(p.x()) > limit || std::abs(p.y()) > limit)
   {
     return false;
   }
-  std::int32_t ax = static_cast<std::int32_t>(std::floor(r.from.x() / res));
-  std::int32_t ay = static_cast<std::int32_t>(std::floor(r.from.y() / res));
-  std::int32_t bx = static_cast<std::int32_t>(std::floor(r.to.x() / res));
-  std::int32_t by = static_cast<std::int32_t>(std::floor(r.to.y() / res));
+  x = static_cast<std::int64_t>(std::floor(p.x() / res));
+  y = static_cast<std::int64_t>(std::floor(p.y() / res));
+  return true;
+}
+
+bool GridBuilder::toRay(const FreeRay& r, Ray& out) const
+{
+  std::int64_t ax = 0, ay = 0, bx = 0, by = 0;
+  if (!toCell(r.from, ax, ay) || !toCell(r.to, bx, by))
+  {
+    return false;
+  }
   if (bx < ax || (bx == ax && by < ay))
   {
     std::swap(ax, bx);
     std::swap(ay, by);
   }
-  out = Ray{ ax, ay, bx, by };
+  out = Ray{ static_cast<std::int32_t>(ax), static_cast<std::int32_t>(ay), static_cast<std::int32_t>(bx),
+             static_cast<std::int32_t>(by) };
   return true;
 }
 
@@ -439,7 +444,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   {
     return update(obstacles, rays);
   }
-  const double res = config_.resolution_m, limit = 1e9 * res;
+  const double res = config_.resolution_m;
   const int tile = config_.tile_size_cells;
   // What came must lie where update(obstacles, rays) would not grow the grid: inside it by the padding.
   const std::int64_t pad = static_cast<std::int64_t>(std::ceil(config_.padding_m / res));
@@ -447,15 +452,6 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   auto fits = [&](std::int64_t x, std::int64_t y) {
     return floorDiv(x - pad, tile) >= tx0 && floorDiv(y - pad, tile) >= ty0 && floorDiv(x + pad, tile) < tx0 + tiles_x_ &&
            floorDiv(y + pad, tile) < ty0 + tiles_y_;
-  };
-  auto cellOf = [&](const Eigen::Vector2d& p, std::int64_t& x, std::int64_t& y) {
-    if (!p.allFinite() || std::abs(p.x()) > limit || std::abs(p.y()) > limit)
-    {
-      return false;
-    }
-    x = static_cast<std::int64_t>(std::floor(p.x() / res));
-    y = static_cast<std::int64_t>(std::floor(p.y() / res));
-    return true;
   };
   std::vector<Ray> rays_removed, rays_added;
   Ray ray;
@@ -480,7 +476,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   std::int64_t x = 0, y = 0;
   for (const auto& p : change.obstacles_added)
   {
-    if (cellOf(p, x, y) && !fits(x, y))
+    if (toCell(p, x, y) && !fits(x, y))
     {
       return update(obstacles, rays);
     }
@@ -492,7 +488,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   bool consistent = true;
   auto obstacle = [&](const Eigen::Vector2d& p, int sign) {
     std::int64_t cx = 0, cy = 0;
-    if (!cellOf(p, cx, cy))
+    if (!toCell(p, cx, cy))
     {
       return;
     }
@@ -543,6 +539,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
               });
   };
   // A distinct ray covers its cells once, however many copies of it there are.
+  std::size_t n_emptied = 0;  // distinct rays left with no copy
   for (const Ray& r : rays_removed)
   {
     const auto it = std::lower_bound(rays_.begin(), rays_.end(), r);
@@ -553,6 +550,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     }
     if (--ray_count_[static_cast<std::size_t>(it - rays_.begin())] == 0)
     {
+      ++n_emptied;
       cover(r, false);
     }
   }
@@ -566,6 +564,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     {
       if (ray_count_[static_cast<std::size_t>(it - rays_.begin())]++ == 0)
       {
+        --n_emptied;
         cover(r, true);
       }
     }
@@ -587,8 +586,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     return update(obstacles, rays);
   }
   // Rays whose copies are all gone leave the list, new ones join it: one merge.
-  const bool emptied = std::find(ray_count_.begin(), ray_count_.end(), 0u) != ray_count_.end();
-  if (emptied || !inserted.empty())
+  if (n_emptied > 0 || !inserted.empty())
   {
     std::vector<Ray> merged_rays;
     std::vector<std::uint32_t> merged_counts;

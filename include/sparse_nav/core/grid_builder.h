@@ -157,6 +157,8 @@ private:
   void markAroundDirty(const std::vector<std::uint8_t>& dirty, std::vector<std::uint8_t>& write) const;
   /// Recomputes the tiles marked in write and fills in result's tiles and status.
   GridUpdate finish(const std::vector<std::uint8_t>& write, bool full, GridUpdate result);
+  /// The absolute cell of p; false when a coordinate is not finite or too large.
+  bool toCell(const Eigen::Vector2d& p, std::int64_t& x, std::int64_t& y) const;
   /// The ray's end cells, in canonical order; false when a coordinate is not finite or too large.
   bool toRay(const FreeRay& r, Ray& out) const;
 

@@ -39,6 +39,28 @@ RayPassCount::RayPassCount(const RayPassConfig& config) : config_(config)
 {
 }
 
+bool RayPassCount::counts(const PassRay& r) const
+{
+  return r.camera < camera_ok_.size() && camera_ok_[r.camera] && inReach(r.end_xy);
+}
+
+void RayPassCount::widen(std::size_t k, double h)
+{
+  z_lo_[k] = std::min(z_lo_[k], static_cast<float>(h - config_.height_tolerance_m));
+  z_hi_[k] = std::max(z_hi_[k], static_cast<float>(h));
+}
+
+bool RayPassCount::inCameraCell(std::uint32_t camera, const IndexedRay& e) const
+{
+  return e.bx == camera_cell_[camera].x() && e.by == camera_cell_[camera].y();
+}
+
+std::size_t RayPassCount::blockOf(std::size_t k) const
+{
+  const std::size_t w = static_cast<std::size_t>(size_.x());
+  return (k / w / kBlock + 1) * static_cast<std::size_t>(bw_) + (k % w) / kBlock + 1;
+}
+
 void RayPassCount::setHot()
 {
   hot_.assign(block_cells_.size(), 0);
@@ -235,10 +257,10 @@ void RayPassCount::indexRays(const PassRaySource& rays)
   for (std::size_t i = 0; i < rays.size; ++i)
   {
     const PassRay r = rays.at(i);
-    if (r.camera < camera_ok_.size() && camera_ok_[r.camera] && inReach(r.end_xy))
+    if (counts(r))
     {
       const IndexedRay e = indexed(r);
-      if (e.bx != camera_cell_[r.camera].x() || e.by != camera_cell_[r.camera].y())
+      if (!inCameraCell(r.camera, e))
       {
         entries.push_back(e);
         camera_of.push_back(r.camera);
@@ -318,20 +340,14 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
   z_hi_.assign(n_cells, -std::numeric_limits<float>::infinity());
   for (const auto& p : candidates)
   {
-    const std::size_t k = index(cellOf(p.xy));
-    z_lo_[k] = std::min(z_lo_[k], static_cast<float>(p.h - config_.height_tolerance_m));
-    z_hi_[k] = std::max(z_hi_[k], static_cast<float>(p.h));
+    widen(index(cellOf(p.xy)), p.h);
   }
   bw_ = (size_.x() + kBlock - 1) / kBlock + 2;
   bh_ = (size_.y() + kBlock - 1) / kBlock + 2;
   block_cells_.assign(static_cast<std::size_t>(bw_) * bh_, 0);
-  for (int y = 0; y < size_.y(); ++y)
+  for (std::size_t k = 0; k < n_cells; ++k)
   {
-    for (int x = 0; x < size_.x(); ++x)
-    {
-      const std::size_t k = static_cast<std::size_t>(y) * size_.x() + static_cast<std::size_t>(x);
-      block_cells_[static_cast<std::size_t>(y / kBlock + 1) * bw_ + x / kBlock + 1] += z_lo_[k] <= z_hi_[k] ? 1 : 0;
-    }
+    block_cells_[blockOf(k)] += z_lo_[k] <= z_hi_[k] ? 1 : 0;
   }
   setHot();
   count_.assign(n_cells, 0);
@@ -349,7 +365,7 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
   for (std::size_t i = 0; i < rays.size; ++i)
   {
     const PassRay r = rays.at(i);
-    if (r.camera < camera_ok_.size() && camera_ok_[r.camera] && inReach(r.end_xy))
+    if (counts(r))
     {
       const Eigen::Vector2i e = cellOf(r.end_xy) + Eigen::Vector2i::Constant(kCellOffset);
       ends.push_back(End{ r.camera, static_cast<std::uint64_t>(e.x()) << 32 | static_cast<std::uint32_t>(e.y()), r.end_h });
@@ -416,8 +432,7 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
   }
   for (const std::size_t k : changed)
   {
-    const std::size_t block = (k / size_.x() / kBlock + 1) * bw_ + (k % size_.x()) / kBlock + 1;
-    block_cells_[block] -= z_lo_[k] <= z_hi_[k] ? 1 : 0;
+    block_cells_[blockOf(k)] -= z_lo_[k] <= z_hi_[k] ? 1 : 0;
     z_lo_[k] = std::numeric_limits<float>::infinity();
     z_hi_[k] = -std::numeric_limits<float>::infinity();
   }
@@ -442,22 +457,19 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
       {
         continue;
       }
-      const std::size_t k = index(c);
-      z_lo_[k] = std::min(z_lo_[k], static_cast<float>(p.h - config_.height_tolerance_m));
-      z_hi_[k] = std::max(z_hi_[k], static_cast<float>(p.h));
+      widen(index(c), p.h);
     }
   }
   for (const std::size_t k : changed)
   {
-    const std::size_t block = (k / size_.x() / kBlock + 1) * bw_ + (k % size_.x()) / kBlock + 1;
-    block_cells_[block] += z_lo_[k] <= z_hi_[k] ? 1 : 0;
+    block_cells_[blockOf(k)] += z_lo_[k] <= z_hi_[k] ? 1 : 0;
   }
   setHot();
 
   std::vector<double> one(1);
   for (const auto& r : removed_rays)
   {
-    if (r.camera >= camera_ok_.size() || !camera_ok_[r.camera] || !inReach(r.end_xy))
+    if (!counts(r))
     {
       continue;
     }
@@ -487,7 +499,7 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
         found = true;
       }
     }
-    if (e.bx == camera_cell_[r.camera].x() && e.by == camera_cell_[r.camera].y())
+    if (inCameraCell(r.camera, e))
     {
       continue;  // a ray that ends in its camera's cell passes nothing and is not indexed
     }
@@ -501,12 +513,12 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
   std::vector<std::vector<IndexedRay>> fresh(index_.size());
   for (const auto& r : added_rays)
   {
-    if (r.camera >= camera_ok_.size() || !camera_ok_[r.camera] || !inReach(r.end_xy))
+    if (!counts(r))
     {
       continue;
     }
     const IndexedRay e = indexed(r);
-    if (e.bx == camera_cell_[r.camera].x() && e.by == camera_cell_[r.camera].y())
+    if (inCameraCell(r.camera, e))
     {
       continue;
     }

@@ -87,7 +87,6 @@ public:
 
   /// @brief Rays counted at the cell of xy (0 outside the box or without candidates there).
   std::uint32_t count(const Eigen::Vector2d& xy) const;
-  bool counted() const { return counted_; }
   /// @brief Whether the last call was a build() (also when update() fell back to one).
   bool lastWasBuild() const { return last_was_build_; }
   /// @brief Cells counted again from nothing by the last update().
@@ -130,6 +129,14 @@ private:
     return static_cast<std::size_t>(c.y() - lo_.y()) * static_cast<std::size_t>(size_.x()) +
            static_cast<std::size_t>(c.x() - lo_.x());
   }
+  /// Whether the ray takes part: its camera and end are within reach.
+  bool counts(const PassRay& r) const;
+  /// Widens cell k's height range to hold a candidate at height h.
+  void widen(std::size_t k, double h);
+  /// Whether the ray ends in its camera's cell: it passes nothing and is not indexed.
+  bool inCameraCell(std::uint32_t camera, const IndexedRay& e) const;
+  /// The block (with its margin) of cell k.
+  std::size_t blockOf(std::size_t k) const;
   void setHot();
   /// Adds sign x (each ray of heights, from camera c to end cell b) to the counts of the cells it passes.
   void walk(std::size_t c, const Eigen::Vector2i& b, const std::vector<double>& heights, int sign);

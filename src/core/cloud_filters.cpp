@@ -215,9 +215,14 @@ std::vector<char> DensityFilter::keepFlagsUpdated(const PointList& points, const
     {
       return keepFlags(points, stats);
     }
-    FlatKeySet near1, near2;
+    // Many changed points share a cell: each cell is widened once.
+    FlatKeySet near1, near2, seen;
     for (const auto& c : marked)
     {
+      if (!seen.insert(packed(c)))
+      {
+        continue;
+      }
       for (int dx = -2; dx <= 2; ++dx)
       {
         for (int dy = -2; dy <= 2; ++dy)

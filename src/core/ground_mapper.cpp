@@ -203,6 +203,8 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   // octree state (the octree only adds hits in voxels it has not seen and frees none that holds
   // a point of the cloud), so only the new points are looked at and the ray count changes by them.
   const bool continues = has_previous && !floor_moved && cams_in == last_cameras_ && !last_kind_.empty();
+  // The index of point i among the last call's points when this call continues from it, else -1.
+  auto previousOf = [&](std::size_t i) { return continues ? dense_previous[i] : std::int32_t{ -1 }; };
   std::vector<double> cam_height(cams_in.size());
   for (std::size_t c = 0; c < cams_in.size(); ++c)
   {
@@ -224,9 +226,9 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   {
     for (std::size_t i = 0; i < points.size(); ++i)
     {
-      if (continues && dense_previous[i] >= 0)
+      if (previousOf(i) >= 0)
       {
-        nearest[i] = last_camera_[static_cast<std::size_t>(dense_previous[i])];
+        nearest[i] = last_camera_[static_cast<std::size_t>(previousOf(i))];
         continue;
       }
       const Eigen::Vector3d p = points[i].cast<double>();
@@ -251,7 +253,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     std::vector<std::size_t> fresh_nearest;
     for (std::size_t i = 0; i < points.size(); ++i)
     {
-      if (dense_previous[i] < 0)
+      if (previousOf(i) < 0)
       {
         fresh.push_back(out[i]);
         fresh_nearest.push_back(nearest[i]);
@@ -277,10 +279,10 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   std::vector<std::size_t> band_index;
   for (std::size_t i = 0; i < points.size(); ++i)
   {
-    if (continues && dense_previous[i] >= 0)
+    if (previousOf(i) >= 0)
     {
-      heights[i] = last_h_[static_cast<std::size_t>(dense_previous[i])];
-      kind[i] = last_kind_[static_cast<std::size_t>(dense_previous[i])];
+      heights[i] = last_h_[static_cast<std::size_t>(previousOf(i))];
+      kind[i] = last_kind_[static_cast<std::size_t>(previousOf(i))];
       continue;
     }
     heights[i] = plane.normal.dot(points[i].cast<double>()) + plane.d;
@@ -389,7 +391,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
       std::vector<PassCandidate> removed_candidates, added_candidates;
       for (std::size_t i = 0; i < points.size(); ++i)
       {
-        if (dense_previous[i] < 0)
+        if (previousOf(i) < 0)
         {
           added_rays.push_back(rayOf(i));
           if (kind[i] == kCandidate)
@@ -436,7 +438,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     r.incremental = true;
     for (std::size_t i = 0; i < points.size(); ++i)
     {
-      const std::int32_t k = dense_previous[i];
+      const std::int32_t k = previousOf(i);
       if (k >= 0)
       {
         if (obstacle[i] != last_obstacle_[static_cast<std::size_t>(k)])

@@ -268,9 +268,11 @@ struct Candidate
   FloorPlane plane;
 };
 
-/// Extracts up to max_planes planes within eps_deg of up; inliers are removed after each one.
+/// Extracts up to max_planes planes within eps_deg of up; inliers are removed after each one. A
+/// plane holding no more than last_above_inliers points ends the search: the ones after it hold
+/// fewer still.
 std::vector<Candidate> extractPlanes(pcl::PointCloud<pcl::PointXYZ>::Ptr cloud, const FloorDetectorConfig& cfg,
-                                     double eps_deg, int max_planes)
+                                     double eps_deg, int max_planes, std::size_t last_above_inliers = 0)
 {
   std::vector<Candidate> out;
   const Eigen::Vector3d up = cfg.up_axis.normalized();
@@ -318,6 +320,10 @@ std::vector<Candidate> extractPlanes(pcl::PointCloud<pcl::PointXYZ>::Ptr cloud, 
     if (c.plane.tilt_deg <= eps_deg + kRefitToleranceDeg)
     {
       out.push_back(c);
+    }
+    if (inliers.indices.size() <= last_above_inliers)
+    {
+      break;
     }
     std::vector<char> drop(cloud->size(), 0);
     for (int i : inliers.indices)
@@ -378,10 +384,12 @@ pcl::PointCloud<pcl::PointXYZ>::Ptr sampleCloud(const PointList& points, std::si
   return cloud;
 }
 
-/// The two best floor-like planes within kWideConeDeg of up, most inliers first.
-std::vector<Candidate> wideFloorPlanes(const pcl::PointCloud<pcl::PointXYZ>::Ptr& cloud, const FloorDetectorConfig& cfg)
+/// The two best floor-like planes within kWideConeDeg of up, most inliers first; only the first when
+/// it holds no more than last_above_inliers points.
+std::vector<Candidate> wideFloorPlanes(const pcl::PointCloud<pcl::PointXYZ>::Ptr& cloud, const FloorDetectorConfig& cfg,
+                                       std::size_t last_above_inliers = 0)
 {
-  std::vector<Candidate> wide = extractPlanes(cloud, cfg, kWideConeDeg, 2);
+  std::vector<Candidate> wide = extractPlanes(cloud, cfg, kWideConeDeg, 2, last_above_inliers);
   keepFloorLike(wide, *cloud, cfg);
   std::sort(wide.begin(), wide.end(),
             [](const Candidate& a, const Candidate& b) { return a.plane.n_inliers > b.plane.n_inliers; });
@@ -501,13 +509,15 @@ FloorResult FloorDetector::tiltedBeyondTheLimit(const PointList& points, const F
   // consensus in the wide cone, on a small sample, tells: a floor-like plane beyond the limit with
   // clearly more inliers than the envelope's floor means the floor is tilted too much.
   const pcl::PointCloud<pcl::PointXYZ>::Ptr cloud = sampleCloud(points, kTiltCheckPoints);
-  const std::vector<Candidate> wide = wideFloorPlanes(cloud, config_);
   const FloorPlane& floor = envelope.plane;
   std::size_t support = 0;
   for (const auto& p : cloud->points)
   {
     support += std::abs(floor.normal.dot(Eigen::Vector3d(p.x, p.y, p.z)) + floor.d) <= config_.distance_threshold_m;
   }
+  // A plane that cannot outweigh the envelope's floor ends the search (half the cost at 100k points).
+  const auto enough = static_cast<std::size_t>(kTiltCheckSupportRatio * static_cast<double>(support));
+  const std::vector<Candidate> wide = wideFloorPlanes(cloud, config_, enough);
   for (const auto& w : wide)
   {
     if (w.plane.tilt_deg > config_.max_tilt_deg + kRefitToleranceDeg &&

@@ -266,14 +266,23 @@ def ordered(stages):
     return known + [n for n in stages if n not in known]
 
 
-def run_ours(binary, csv, tmp, runs):
-    """Median stages of `runs` build_grid runs, with rebuild = total - read - write."""
+REPEATED_REBUILDS = 5       # build_grid --repeat-rebuild: rebuilds in the process after its first
+
+
+def run_ours(binary, csv, tmp, runs, repeat_rebuild=False):
+    """Median stages of `runs` build_grid runs, with rebuild = total - read - write (in a fresh
+    process); with `repeat_rebuild` also the median of the rebuilds after the first in each
+    process ("warm_rebuild_ms": a running node's rebuild, its memory already mapped)."""
     results = []
     for i in range(runs):
         prefix = os.path.join(tmp, f"ours_{i}")
-        results.append(run_json([binary, csv, "--out", prefix, "--up-axis", "z",
-                                 "--resolution", str(RESOLUTION_M), "--alpha", str(ALPHA_M),
-                                 "--json"]))
+        cmd = [binary, csv, "--out", prefix, "--up-axis", "z", "--resolution", str(RESOLUTION_M),
+               "--alpha", str(ALPHA_M), "--json"]
+        if repeat_rebuild:
+            cmd += ["--repeat-rebuild", str(REPEATED_REBUILDS)]
+        results.append(run_json(cmd))
+    warm = [statistics.median(r["repeated_rebuild_ms"]) for r in results
+            if r.get("repeated_rebuild_ms")]
     stages = median_stages(results)
     totals = [sum(r["stages_ms"].values()) for r in results]
     rebuilds = [sum(v for k, v in r["stages_ms"].items() if k not in ("read", "write"))
@@ -285,15 +294,17 @@ def run_ours(binary, csv, tmp, runs):
             "rebuild_ms": round(statistics.median(rebuilds), 3),
             "grid_stages_ms": round(statistics.median(grids), 3),
             "runs_rebuild_ms": [round(v, 3) for v in rebuilds],
+            **({"warm_rebuild_ms": round(statistics.median(warm), 3),
+                "runs_warm_rebuild_ms": [round(v, 3) for v in warm]} if warm else {}),
             "grid": last.get("grid"), "filtered": last.get("filtered"),
             "floor": last.get("floor")}
 
 
 def update_interface(binary):
-    """(--update listed, --repeat-update listed) in build_grid's --help."""
+    """(--update, --repeat-update, --repeat-rebuild) each listed or not in build_grid's --help."""
     proc = subprocess.run([binary, "--help"], capture_output=True, text=True, timeout=60)
     text = proc.stdout + proc.stderr
-    return "--update" in text, "--repeat-update" in text
+    return "--update" in text, "--repeat-update" in text, "--repeat-rebuild" in text
 
 
 REPEATED_UPDATES = 10       # build_grid --repeat-update: updates after the first, each way
@@ -403,6 +414,9 @@ def print_table(rows):
             print(f"  ours total {_fmt_ms(ours['total_ms'])} ms, rebuild (less read and write) "
                   f"{_fmt_ms(ours['rebuild_ms'])} ms, of which slice and grid "
                   f"{_fmt_ms(ours['grid_stages_ms'])} ms")
+            if "warm_rebuild_ms" in ours:
+                print(f"  ours rebuild again in the same process (median of {REPEATED_REBUILDS} "
+                      f"after the first): {_fmt_ms(ours['warm_rebuild_ms'])} ms")
         base = row["seed004"]
         if "total_ms" in base:
             stages = ", ".join(f"{k} {_fmt_ms(v)}" for k, v in base["stages_ms"].items())
@@ -428,8 +442,9 @@ def print_table(rows):
     print("\nsummary (ms). ours: rebuild, i.e. build_grid less reading the file and writing the"
           "\nmaps; grid: its slice and grid stages alone; x: the other's time / ours (above 1: we"
           "\nare faster); update: incremental update after 1% of the points changed, the first"
-          "\nafter the build; steady: the median of those after it")
-    print(f"{'points':>9} {'ours':>8} {'grid':>7} {'update':>8} {'steady':>7} {'seed004':>9} {'x seed':>7} "
+          "\nafter the build; steady: the median of those after it; warm: ours again in the same"
+          "\nprocess, as a running node rebuilds")
+    print(f"{'points':>9} {'ours':>8} {'warm':>7} {'grid':>7} {'update':>8} {'steady':>7} {'seed004':>9} {'x seed':>7} "
           f"{'x seed/grid':>11} {'octomap':>8} {'x octo':>7}")
     for row in rows:
         ours = row.get("ours") or {}
@@ -444,7 +459,7 @@ def print_table(rows):
             base_s = "-"
         ratios = row.get("ratios", {})
         print(f"{row['n_points']:>9} {_fmt_ms(ours.get('rebuild_ms')):>8} "
-              f"{_fmt_ms(ours.get('grid_stages_ms')):>7} {_fmt_ms(upd.get('update_ms')):>8} "
+              f"{_fmt_ms(ours.get('warm_rebuild_ms')):>7} {_fmt_ms(ours.get('grid_stages_ms')):>7} {_fmt_ms(upd.get('update_ms')):>8} "
               f"{_fmt_ms(upd.get('steady_update_ms')):>7} "
               f"{base_s:>9} {ratios.get('seed004_over_ours') or '-':>7} "
               f"{ratios.get('seed004_over_ours_grid_stages') or '-':>11} "
@@ -475,7 +490,7 @@ def main(argv=None):
     print(f"bench_grid: build_grid = {binary}")
     print("bench_grid: data: synthetic clouds generated here (seed "
           f"{CLOUD_SEED}); no data from ../shared is used")
-    has_update, has_repeat = update_interface(binary)
+    has_update, has_repeat, has_repeat_rebuild = update_interface(binary)
     if BASELINE_MISSING:
         print(f"bench_grid: seed 004 baseline {BASELINE_MISSING}", file=sys.stderr)
     t_start = time.perf_counter()
@@ -495,7 +510,7 @@ def main(argv=None):
             row = {"n_points": n, "slice_points": slice_points, "runs": args.runs}
             print(f"bench_grid: {n} points: ours ...", flush=True)
             try:
-                row["ours"] = run_ours(binary, csv, tmp, args.runs)
+                row["ours"] = run_ours(binary, csv, tmp, args.runs, has_repeat_rebuild)
             except RuntimeError as err:
                 row["ours"] = {"error": str(err)}
                 print(f"bench_grid: {n} points: {err}", file=sys.stderr)

@@ -123,3 +123,17 @@ def test_an_update_looks_at_the_moved_points_and_repeats_on_request(tmp_path):
     assert update["full_rebuild"] is False
     assert update["recomputed_tiles"] < update["tiles"]
     assert len(update["repeated_ms"]) == 4 and all(t > 0 for t in update["repeated_ms"])
+
+
+def test_repeated_rebuilds_are_timed_and_leave_the_outputs_as_they_were(tmp_path):
+    csv = write(tmp_path / "room.csv", room_cloud())
+    common = ["--up-axis", "z", "--camera", "2.5,2,1.2", "--json"]
+    once = run(csv, "--out", tmp_path / "once", *common)
+    again = run(csv, "--out", tmp_path / "again", *common, "--repeat-rebuild", 3)
+    assert once.returncode == 0 and again.returncode == 0, once.stderr + again.stderr
+    r_once, r_again = json.loads(once.stdout), json.loads(again.stdout)
+    assert r_once["repeated_rebuild_ms"] == []
+    assert len(r_again["repeated_rebuild_ms"]) == 3
+    assert all(t > 0 for t in r_again["repeated_rebuild_ms"])
+    assert r_again["grid"] == r_once["grid"]
+    assert (tmp_path / "again.pgm").read_bytes() == (tmp_path / "once.pgm").read_bytes()

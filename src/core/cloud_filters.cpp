@@ -602,6 +602,62 @@ void IncrementalVoxelGrid::setSlot(const Key& key, std::int32_t slot)
   }
 }
 
+IncrementalVoxelFilter::IncrementalVoxelFilter(const VoxelFilterConfig& config, bool enabled)
+  : enabled_(enabled), grid_(config)
+{
+}
+
+void IncrementalVoxelFilter::clear()
+{
+  grid_.clear();
+  last_points_.clear();
+}
+
+const PointList& IncrementalVoxelFilter::apply(const PointList& points)
+{
+  added_.clear();
+  removed_.clear();
+  previous_index_.assign(points.size(), -1);
+  const std::size_t common = std::min(points.size(), last_points_.size());
+  for (std::size_t i = 0; i < common; ++i)
+  {
+    if (points[i] == last_points_[i])
+    {
+      previous_index_[i] = static_cast<std::int32_t>(i);
+    }
+    else
+    {
+      removed_.push_back(last_points_[i]);
+      added_.push_back(points[i]);
+    }
+  }
+  removed_.insert(removed_.end(), last_points_.begin() + static_cast<std::ptrdiff_t>(common), last_points_.end());
+  added_.insert(added_.end(), points.begin() + static_cast<std::ptrdiff_t>(common), points.end());
+  // Removing and adding most of the points costs twice a build, and a build keeps voxel order.
+  rebuilt_ = common == 0 || 2 * added_.size() > points.size();
+  n_changed_ = rebuilt_ ? points.size() : added_.size();
+  if (rebuilt_)
+  {
+    std::fill(previous_index_.begin(), previous_index_.end(), -1);
+  }
+  last_points_ = points;
+  if (!enabled_)
+  {
+    return last_points_;
+  }
+  if (rebuilt_)
+  {
+    grid_.clear();
+    grid_.update(points, PointList());
+  }
+  else
+  {
+    grid_.update(added_, removed_);
+  }
+  previous_index_ = grid_.previousIndex();
+  return grid_.centroids();
+}
+
 VoxelFilter::VoxelFilter(const VoxelFilterConfig& config) : config_(config)
 {
   config_.validate();

@@ -48,7 +48,7 @@ void GridPipelineConfig::validate() const
 GridPipeline::GridPipeline(const GridPipelineConfig& config)
   : config_((config.validate(), config))
   , guard_(config.guard)
-  , voxel_(config.voxel)
+  , voxel_(config.voxel, config.voxel_enabled)
   , ground_(config.ground)
   , builder_(config.grid)
 {
@@ -59,7 +59,6 @@ GridPipeline::~GridPipeline() = default;
 void GridPipeline::forgetLastCloud()
 {
   voxel_.clear();
-  last_points_.clear();
   ground_saw_last_cloud_ = false;
   builder_saw_last_ground_ = false;
 }
@@ -87,40 +86,9 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       p *= s;
     }
     timer.lap("guard");
-    // SLAM map points keep their place in the list between updates (new ones come at the end), so
-    // the points that differ at the same index are the ones that moved: only they change voxels.
-    PointList added, removed;
-    std::vector<std::int32_t>& previous_index = previous_index_;
-    previous_index.assign(points.size(), -1);
-    const std::size_t common = std::min(points.size(), last_points_.size());
-    for (std::size_t i = 0; i < common; ++i)
-    {
-      if (points[i] == last_points_[i])
-      {
-        previous_index[i] = static_cast<std::int32_t>(i);
-      }
-      else
-      {
-        removed.push_back(last_points_[i]);
-        added.push_back(points[i]);
-      }
-    }
-    removed.insert(removed.end(), last_points_.begin() + static_cast<std::ptrdiff_t>(common), last_points_.end());
-    const bool all_new = common == 0;
-    if (!all_new)
-    {
-      added.insert(added.end(), points.begin() + static_cast<std::ptrdiff_t>(common), points.end());
-    }
-    r.n_changed_points = all_new ? points.size() : added.size();
+    const PointList& voxels = voxel_.apply(points);
+    r.n_changed_points = voxel_.numChanged();
     r.voxel.n_in = points.size();
-    if (config_.voxel_enabled)
-    {
-      voxel_.update(all_new ? points : added, removed);
-      previous_index = voxel_.previousIndex();
-    }
-    last_points_ = std::move(points);
-    // What goes on: the centroids, or the guarded cloud itself without the voxel grid.
-    const PointList& voxels = config_.voxel_enabled ? voxel_.centroids() : last_points_;
     r.voxel.n_out = voxels.size();
     timer.lap("voxel");
     if (voxels.empty())
@@ -136,9 +104,9 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
     {
       cameras.push_back(c.cast<double>() * config_.metres_per_unit);
     }
-    const bool continues = ground_saw_last_cloud_;
+    const bool continues = ground_saw_last_cloud_ && !voxel_.rebuilt();
     ground_saw_last_cloud_ = true;
-    GroundMapperResult g = ground_.process(voxels, cameras, continues ? &previous_index : nullptr);
+    GroundMapperResult g = ground_.process(voxels, cameras, continues ? &voxel_.previousIndex() : nullptr);
     for (const auto& kv : g.stages_ms)
     {
       r.stages_ms[kv.first] += kv.second;

@@ -18,6 +18,7 @@ void CloudFilterNodelet::onInit()
   loadParam(pnh, "max_points", max_points_);
   guard_config_.validate();
   voxel_config_.validate();
+  voxel_.reset(new IncrementalVoxelFilter(voxel_config_, voxel_enabled_));
 
   pub_ = nh.advertise<sensor_msgs::PointCloud2>("cloud/filtered", 2);
   diag_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
@@ -30,6 +31,7 @@ void CloudFilterNodelet::diagnose(bool ok, const std::string& message)
   publishDiagnostics(diag_pub_, "cloud_filter", ok, message,
                      { { "points_in", std::to_string(n_in_) },
                        { "points_out", std::to_string(n_out_) },
+                     { "points_changed", std::to_string(n_changed_) },
                        { "clouds_rejected", std::to_string(n_rejected_) },
                        { "last_ms", std::to_string(last_ms_) } });
 }
@@ -71,16 +73,18 @@ void CloudFilterNodelet::onCloud(const sensor_msgs::PointCloud2ConstPtr& msg)
       diagnose(false, "empty cloud");
       return;
     }
-    if (voxel_enabled_)
-      points = VoxelFilter(voxel_config_).apply(points);
+    // SLAM map points keep their order between messages: only the voxels of those that moved change.
+    const PointList& filtered = voxel_->apply(points);
     n_in_ = n;
-    n_out_ = points.size();
+    n_out_ = filtered.size();
+    n_changed_ = voxel_->numChanged();
     last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    pub_.publish(pointsToCloud(points, msg->header));
+    pub_.publish(pointsToCloud(filtered, msg->header));
     diagnose(true, "ok");
   }
   catch (const std::exception& e)
   {
+    voxel_->clear();  // the next cloud is taken whole
     NODELET_ERROR_THROTTLE(5.0, "cloud_filter: %s; keeping the last output", e.what());
   }
 }

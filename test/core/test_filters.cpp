@@ -18,6 +18,7 @@ using sparse_nav::DensityFilter;
 using sparse_nav::DensityFilterConfig;
 using sparse_nav::DensityMethod;
 using sparse_nav::IncrementalVoxelGrid;
+using sparse_nav::IncrementalVoxelFilter;
 using sparse_nav::PointGuard;
 using sparse_nav::PointGuardConfig;
 using sparse_nav::PointGuardStats;
@@ -471,6 +472,89 @@ TEST(DensityFilter, AnUpdateCountsOnlyAroundTheChangedPointsAndKeepsWhatACountOf
   sparse_nav::DensityFilterStats whole;
   EXPECT_TRUE(filter.keepFlagsUpdated(after, twice, before, previous_keep, &whole) == full);
   EXPECT_EQ(whole.n_counted, after.size());
+}
+
+TEST(IncrementalVoxelFilter, ACloudThatMovedInAFewPlacesIsUpdatedThereAndMostlyChangedIsRebuilt)
+{
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<float> u(-3.0f, 3.0f);
+  PointList before(5000);
+  for (auto& p : before)
+  {
+    p = Eigen::Vector3f(u(rng), u(rng), u(rng) * 0.1f);
+  }
+  VoxelFilterConfig cfg;
+  IncrementalVoxelFilter filter(cfg);
+  const PointList first = filter.apply(before);
+  EXPECT_TRUE(first == VoxelFilter(cfg).apply(before));
+  EXPECT_TRUE(filter.rebuilt());
+  EXPECT_EQ(filter.numChanged(), before.size());
+
+  // 100 points move and 20 are appended: an update in place.
+  PointList after = before;
+  for (std::size_t i = 0; i < after.size(); i += 50)
+  {
+    after[i] += Eigen::Vector3f(0.2f, -0.1f, 0.0f);
+  }
+  for (int k = 0; k < 20; ++k)
+  {
+    after.emplace_back(u(rng) + 10.0f, u(rng), 0.0f);
+  }
+  const PointList second = filter.apply(after);
+  EXPECT_FALSE(filter.rebuilt());
+  EXPECT_EQ(filter.numChanged(), 120u);
+  EXPECT_TRUE(sortedPoints(second) == VoxelFilter(cfg).apply(after));
+  std::size_t same = 0;
+  for (std::size_t i = 0; i < second.size(); ++i)
+  {
+    const std::int32_t prev = filter.previousIndex()[i];
+    if (prev >= 0)
+    {
+      ASSERT_EQ(first[static_cast<std::size_t>(prev)], second[i]);
+      ++same;
+    }
+  }
+  EXPECT_GT(same, second.size() / 2);
+
+  // The same cloud again: nothing changed, every centroid is the one before.
+  const PointList third = filter.apply(after);
+  EXPECT_EQ(filter.numChanged(), 0u);
+  ASSERT_EQ(third.size(), second.size());
+  for (std::size_t i = 0; i < third.size(); ++i)
+  {
+    EXPECT_EQ(filter.previousIndex()[i], static_cast<std::int32_t>(i));
+  }
+
+  // Every point moved (a new SLAM map): built from scratch, in voxel order, nothing kept.
+  PointList shifted = after;
+  for (auto& p : shifted)
+  {
+    p += Eigen::Vector3f(0.5f, 0.0f, 0.0f);
+  }
+  const PointList fourth = filter.apply(shifted);
+  EXPECT_TRUE(filter.rebuilt());
+  EXPECT_TRUE(fourth == VoxelFilter(cfg).apply(shifted));
+  for (const std::int32_t prev : filter.previousIndex())
+  {
+    EXPECT_EQ(prev, -1);
+  }
+
+  // After clear() the next cloud is new even if it is the last one.
+  filter.clear();
+  EXPECT_TRUE(filter.apply(shifted) == fourth);
+  EXPECT_TRUE(filter.rebuilt());
+}
+
+TEST(IncrementalVoxelFilter, DisabledItPassesTheCloudOnAndSaysWhichPointsStayed)
+{
+  IncrementalVoxelFilter filter(VoxelFilterConfig(), false);
+  PointList cloud{ { 0.0f, 0.0f, 0.0f }, { 1.0f, 0.0f, 0.0f }, { 2.0f, 0.0f, 0.0f }, { 3.0f, 0.0f, 0.0f } };
+  EXPECT_TRUE(filter.apply(cloud) == cloud);
+  cloud[1].x() = 1.5f;
+  EXPECT_TRUE(filter.apply(cloud) == cloud);
+  EXPECT_EQ(filter.numChanged(), 1u);
+  EXPECT_EQ(filter.previousIndex(), (std::vector<std::int32_t>{ 0, -1, 2, 3 }));
+  EXPECT_TRUE(filter.apply(PointList()).empty());
 }
 
 TEST(IncrementalVoxelGrid, RemovingPointsItNeverHeldIsCountedAndIgnored)

@@ -14,7 +14,7 @@ from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
 from sparse_nav.msg import SlamState
-from sparse_nav.ros.conversions import points_to_cloud
+from sparse_nav.ros.conversions import cloud_to_points, points_to_cloud
 from sparse_nav.srv import MapFile
 
 
@@ -39,7 +39,10 @@ class PerceptionBadInputTest(unittest.TestCase):
         self.lock = threading.Lock()
         self.maps = []
         self.octree_leaves = []
+        self.filter_changed = []
+        self.filtered = []
         rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=5)
+        rospy.Subscriber("cloud/filtered", PointCloud2, self._on_filtered, queue_size=5)
         rospy.Subscriber("/diagnostics", DiagnosticArray, self._on_diagnostics, queue_size=20)
         self.pub = rospy.Publisher("slam/points", PointCloud2, queue_size=2, latch=True)
 
@@ -47,12 +50,19 @@ class PerceptionBadInputTest(unittest.TestCase):
         with self.lock:
             self.maps.append(msg)
 
+    def _on_filtered(self, msg):
+        with self.lock:
+            self.filtered.append(cloud_to_points(msg))
+
     def _on_diagnostics(self, msg):
         for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
             if status.name == "ground_mapper":
-                values = {kv.key: kv.value for kv in status.values}
                 with self.lock:
                     self.octree_leaves.append(int(values["octree_leaves"]))
+            elif status.name == "cloud_filter" and status.level == status.OK:
+                with self.lock:
+                    self.filter_changed.append(int(values["points_changed"]))
 
     def _publish(self, msg):
         msg.header.stamp = rospy.Time.now()
@@ -92,6 +102,32 @@ class PerceptionBadInputTest(unittest.TestCase):
             half = self.octree_leaves[-1]
         self.assertLess(half, 0.8 * whole, f"octree leaves: {whole} for the room, {half} after the "
                         "switch for half of it")
+
+    def test_cloud_filter_updates_the_voxels_of_the_points_that_moved(self):
+        """SLAM map points keep their order: a cloud with 30 points moved is 30 changed points,
+        and its voxel centroids are those of the whole moved cloud."""
+        room = synthetic_room(seed=4)
+        self._publish(points_to_cloud(room, Header(frame_id="map")))
+        moved = room.copy()
+        moved[::40][:30] += 0.2   # 30 of its ~1900 points
+        with self.lock:
+            n_filtered = len(self.filtered)
+        self._publish(points_to_cloud(moved, Header(frame_id="map")))
+        with self.lock:
+            changed = self.filter_changed[-1]
+            got = self.filtered[-1] if len(self.filtered) > n_filtered else None
+        self.assertEqual(changed, 30)
+        self.assertIsNotNone(got, "no cloud/filtered after the moved cloud")
+        as_sent = moved.astype(np.float32).astype(np.float64)
+        # The voxel of a point as the core computes it: floor(coordinate * (1 / leaf)) in double.
+        keys, inverse = np.unique(np.floor(as_sent * (1.0 / 0.05)).astype(np.int64), axis=0,
+                                  return_inverse=True)
+        expected = np.zeros((len(keys), 3))
+        np.add.at(expected, inverse.ravel(), as_sent)
+        expected /= np.bincount(inverse.ravel())[:, None]
+        order = lambda p: p[np.lexsort((p[:, 0], p[:, 1], p[:, 2]))]
+        self.assertEqual(len(got), len(expected))
+        np.testing.assert_allclose(order(got), order(expected), atol=1e-5)
 
     def test_bad_clouds_and_files(self):
         rospy.wait_for_service("ground_mapper/load", 60.0)

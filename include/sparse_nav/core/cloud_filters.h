@@ -202,6 +202,44 @@ private:
 };
 
 /**
+ * @brief The voxel grid of a cloud that changes a little between calls, as SLAM map points do:
+ * they keep their place in the list and new ones are appended, so the points that differ from the
+ * last cloud at the same index are the ones that moved, and only their voxels change. A cloud
+ * that differs in more than half its points is built from scratch. Disabled, the cloud itself is
+ * the output. Units are metres; any frame.
+ */
+class IncrementalVoxelFilter
+{
+public:
+  explicit IncrementalVoxelFilter(const VoxelFilterConfig& config = VoxelFilterConfig(), bool enabled = true);
+
+  /// @brief The centroids of points (points itself when disabled), valid until the next call.
+  const PointList& apply(const PointList& points);
+  /// @brief Forgets the last cloud: the next one is built from scratch.
+  void clear();
+
+  /// @brief Per output point of the last apply(): its index in the output before, when it is the
+  /// same point, else -1.
+  const std::vector<std::int32_t>& previousIndex() const { return previous_index_; }
+  /// @brief Input points of the last apply() that differ from the cloud before (all of them after
+  /// clear() or a rebuild).
+  std::size_t numChanged() const { return n_changed_; }
+  /// @brief Whether the last apply() built the output from scratch.
+  bool rebuilt() const { return rebuilt_; }
+  bool enabled() const { return enabled_; }
+
+private:
+  bool enabled_;
+  IncrementalVoxelGrid grid_;
+  PointList last_points_;
+  std::vector<std::int32_t> previous_index_;
+  std::size_t n_changed_ = 0;
+  bool rebuilt_ = true;
+  // Scratch of apply(), kept for its capacity.
+  PointList added_, removed_;
+};
+
+/**
  * @brief Voxel-grid downsampling: each occupied voxel becomes the centroid of its points, sorted
  * by voxel (an IncrementalVoxelGrid built from scratch). Units are metres; any frame.
  */

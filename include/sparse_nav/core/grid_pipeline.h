@@ -102,12 +102,10 @@ private:
 
   GridPipelineConfig config_;
   PointGuard guard_;
-  IncrementalVoxelGrid voxel_;
-  PointList last_points_;  // the last cloud, guarded and scaled
+  IncrementalVoxelFilter voxel_;  // of the guarded, scaled cloud
   bool ground_saw_last_cloud_ = false;  // GroundMapper's last input is voxel_'s last output
   bool builder_saw_last_ground_ = false;  // GridBuilder's last input is GroundMapper's last output
   // Scratch of process(), kept for its capacity.
-  std::vector<std::int32_t> previous_index_;
   PointList2D obstacles_xy_;
   GroundMapper ground_;
   GridBuilder builder_;

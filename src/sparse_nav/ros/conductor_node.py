@@ -224,11 +224,17 @@ class ConductorNode:
             steps = self._scan_steps(name, pose)
             rospy.loginfo("conductor: %s scan, %d steps", name, len(steps))
             runner = ScanRunner(steps, self.runner_config, while_lost=name == "relocalise")
+        self._start_runner(runner)
+
+    def _start_runner(self, runner, resumable=True):
+        """Runs the runner's steps in the scan thread; a resumable one stopped midway is kept
+        to go on with later."""
         self.scan_stop.clear()
-        self.scan_thread = threading.Thread(target=self._run_scan, args=(runner,), daemon=True)
+        self.scan_thread = threading.Thread(target=self._run_scan, args=(runner, resumable),
+                                            daemon=True)
         self.scan_thread.start()
 
-    def _run_scan(self, runner):
+    def _run_scan(self, runner, resumable=True):
         if self.tello is not None and not self.took_off:
             self.took_off, why = take_off(self.tello.send)
             if not self.took_off:
@@ -251,7 +257,8 @@ class ConductorNode:
             runner.report_motion(done, lost)
         with self.lock:
             self.obs.scan_failed = runner.failed
-            if self.scan_stop.is_set() and not runner.while_lost and not runner.done:
+            if (resumable and self.scan_stop.is_set() and not runner.while_lost
+                    and not runner.done):
                 self.paused_scan = runner
 
     def _stop_scan(self):
@@ -325,13 +332,13 @@ class ConductorNode:
                 self.executor.execute(Step())  # publishes one zero velocity
         elif action.kind == ActionKind.RECOVER_MOTION:
             self._stop_scan()
-            self.scan_stop.clear()
             grid = self.grid
             steps = steps_out_of_obstacle(grid, pose) if grid is not None and pose else None
             if steps is None:  # no free cell nearby: look around from a little aside
                 steps = [Step(forward_m=0.2, ccw_deg=30.0), Step(forward_m=-0.2)]
-            self.scan_thread = threading.Thread(target=self._run_scan, args=(steps,), daemon=True)
-            self.scan_thread.start()
+            rospy.loginfo("conductor: recovery motion, %d steps", len(steps))
+            # Not resumable: a phase scan asked to go on must not go on with this motion.
+            self._start_runner(ScanRunner(steps, self.runner_config), resumable=False)
 
     def _publish_state(self):
         c = self.conductor

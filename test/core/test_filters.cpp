@@ -293,6 +293,17 @@ PointList sortedPoints(PointList points, double leaf = 0.05)
   std::sort(points.begin(), points.end(), [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b) { return key(a) < key(b); });
   return points;
 }
+/// n points uniform in 6 m x 6 m x 0.6 m around the origin, drawn from rng.
+PointList randomSlab(std::size_t n, std::mt19937& rng)
+{
+  std::uniform_real_distribution<float> u(-3.0f, 3.0f);
+  PointList points(n);
+  for (auto& p : points)
+  {
+    p = Eigen::Vector3f(u(rng), u(rng), u(rng) * 0.1f);
+  }
+  return points;
+}
 }  // namespace
 
 TEST(VoxelFilter, AveragesPointsPerVoxel)
@@ -335,11 +346,7 @@ TEST(IncrementalVoxelGrid, AnUpdateGivesTheCentroidsOfABuildFromScratch)
 {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-3.0f, 3.0f);
-  PointList before(20000);
-  for (auto& p : before)
-  {
-    p = Eigen::Vector3f(u(rng), u(rng), u(rng) * 0.1f);
-  }
+  const PointList before = randomSlab(20000, rng);
   PointList after = before, added, removed;
   std::normal_distribution<float> noise(0.0f, 0.03f);
   for (std::size_t i = 0; i < after.size(); i += 50)
@@ -478,11 +485,7 @@ TEST(IncrementalVoxelFilter, ACloudThatMovedInAFewPlacesIsUpdatedThereAndMostlyC
 {
   std::mt19937 rng(12);
   std::uniform_real_distribution<float> u(-3.0f, 3.0f);
-  PointList before(5000);
-  for (auto& p : before)
-  {
-    p = Eigen::Vector3f(u(rng), u(rng), u(rng) * 0.1f);
-  }
+  const PointList before = randomSlab(5000, rng);
   VoxelFilterConfig cfg;
   IncrementalVoxelFilter filter(cfg);
   const PointList first = filter.apply(before);

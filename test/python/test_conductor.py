@@ -501,8 +501,8 @@ def bearings(open_deg):
 # The robot at (6.5, 0) east of the door come through, (5, 0): the door's wall runs north-south,
 # and each side's bearings lie within 45 deg of north (45-135) or of south (225-315), 19 each.
 @pytest.mark.parametrize("open_deg, phase, share", [
-    ((90, 95, 270, 275), Phase.DONE, 11),                 # 2 of 19 open both ways: outside
-    ((90, 270, 275), Phase.FIND_EXIT, 5),                 # 1 of 19 to the north: walled in
+    ((85, 90, 95, 265, 270, 275), Phase.DONE, 16),        # 3 of 19 open both ways: outside
+    ((90, 95, 265, 270, 275), Phase.FIND_EXIT, 11),       # 2 of 19 to the north: walled in
     (range(45, 140, 5), Phase.FIND_EXIT, 0),              # a blank side wall, the other walled
     # A blank wall ahead: a 65-deg opening, but not along the door's wall.
     (list(range(330, 360, 5)) + list(range(0, 35, 5)), Phase.FIND_EXIT, 0),

@@ -144,7 +144,7 @@ class ConductorConfig:
                                          # no room to look for the exit in
     max_rooms: int = 3                   # rooms escaped in turn; 1: done after the first exit
                                          # without looking around
-    outside_open_share: float = 0.1      # beyond an exit, bearings open (no wall within
+    outside_open_share: float = 0.15     # beyond an exit, bearings open (no wall within
                                          # walls_around_range_m) on both sides along the door's
                                          # wall, each side this share of its bearings at least:
                                          # outside; less on either side: another room
@@ -357,7 +357,7 @@ class Conductor:
         self._alternatives = []
         self._alternatives_map = self._merge_wait_since_s = None
         self._rescans = 0
-        self._last_look = ((), None)
+        self._last_look = ()
         self._outside_by = 0.0
         self._room_unconfirmed = False
         self.exit_xy = self.goal_xy = None

@@ -21,7 +21,6 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "src"))
 
-import look_grids  # noqa: E402
 from sparse_nav.mission_report import tally_look_arounds  # noqa: E402
 
 STRESS_LOSS_PERIOD_S = 30.0
@@ -34,10 +33,9 @@ def free_port():
         return s.getsockname()[1]
 
 
-def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir, looks_dir=None):
+def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir):
     """One mission; returns the report (or an error entry) with the run's wall time. A run that
-    fails keeps its ROS logs, its report and summary.png in failed_logs_dir, for the reason.
-    With looks_dir, each look around's grid goes there (look_grids.save_looks)."""
+    fails keeps its ROS logs, its report and summary.png in failed_logs_dir, for the reason."""
     name = f"{world.replace(':', '_')}_{robot}_{'stress' if stress else 'plain'}"
     out = os.path.join(tmp, name)
     args = ["roslaunch", "-p", str(free_port()), "sparse_nav", "demo.launch", f"world:={world}",
@@ -66,12 +64,6 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
     if report is None or not report.get("success"):
         logs = _keep_logs(out, os.path.join(ros_home, "log", "latest"),
                           os.path.join(failed_logs_dir, name))
-    if looks_dir and os.path.isfile(os.path.join(out, "run.bag")):
-        os.makedirs(looks_dir, exist_ok=True)
-        try:
-            look_grids.save_looks(os.path.join(out, "run.bag"), world, os.path.join(looks_dir, name))
-        except Exception as exc:  # a broken bag costs its looks, not the bench
-            print(f"bench_mission: no looks from {name}: {exc}", file=sys.stderr)
     shutil.rmtree(out, ignore_errors=True)
     if report is None:
         if logs is None:
@@ -126,8 +118,6 @@ def main(argv=None):
     parser.add_argument("--no-stress", action="store_true", help="skip the stressed runs")
     parser.add_argument("--stress-only", action="store_true", help="skip the plain runs")
     parser.add_argument("--out", default=os.path.join(HERE, "results", "mission.json"))
-    parser.add_argument("--looks", metavar="DIR",
-                        help="save each look around's grid in DIR (see look_grids.py)")
     args = parser.parse_args(argv)
     if shutil.which("roslaunch") is None:
         print("bench_mission: roslaunch not found; source the workspace (make bench does)")
@@ -142,7 +132,7 @@ def main(argv=None):
                 runs = []
                 for seed in range(args.first_seed, args.first_seed + args.worlds):
                     run = run_mission(f"random:{seed}", robot, stress, args.sim_time_limit_s,
-                                      args.rate_factor, tmp, failed_logs, args.looks)
+                                      args.rate_factor, tmp, failed_logs)
                     print(json.dumps(run), flush=True)
                     runs.append(run)
                 key = f"{robot}{' stressed' if stress else ''}"

@@ -11,11 +11,10 @@ def kinds(actions):
     return [a.kind for a in actions]
 
 
-# GridView.walls_around answers, 12 bearings of 30 deg from the map's x axis, for a robot east of
-# the door come through (the door at 180 deg): outside, the building's wall behind (120-240 deg
-# but the door) and a wall ahead beyond the exit (330-30 deg), open along the building's wall
-# both ways (60-90 and 270-300 deg); and walls all round but for one bearing (330 deg).
-WALLS_OUTSIDE = (True, True, False, False, True, True, False, True, True, False, False, True)
+# GridView.walls_around answers, 12 bearings of 30 deg from the map's x axis: walls to the west
+# only (the building behind a robot beyond an exit, the door at 180 deg), and all round but for
+# one bearing (330 deg).
+WALLS_OUTSIDE = (False,) * 3 + (True,) * 3 + (False,) + (True,) * 3 + (False,) * 2
 WALLS_ROOM = (True,) * 11 + (False,)
 
 
@@ -70,7 +69,7 @@ def test_the_whole_mission_in_order():
     m.tick(scan_running=True)
     assert kinds(m.tick(scan_running=False, walls_around=WALLS_OUTSIDE)) == [ActionKind.STOP]
     assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
-    assert "33 % of the bearings along the door's wall open" in m.conductor.reason
+    assert "openings up to 150 deg" in m.conductor.reason
     phases = [tr.phase for tr in m.conductor.history]
     assert phases == [Phase.INITIAL_SCAN, Phase.WALL_SCAN, Phase.FIND_EXIT, Phase.GO_TO_EXIT,
                       Phase.PASS_THROUGH, Phase.LOOK_AROUND, Phase.DONE]
@@ -399,11 +398,11 @@ def looking_around():
 def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_turn():
     m = looking_around()
     # The one bearing without a wall (330 deg) is not toward the door come through (180 deg).
-    actions = m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    actions = m.tick(scan_running=False, walls_around=WALLS_ROOM, side_walls_beyond_m=1.5)
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.FIND_EXIT, "robot")]
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
-    assert ("another room beyond the exit (0 % of the bearings along the door's wall open on its "
-            "more closed side, openings up to 30 deg wide)") in m.conductor.reason
+    assert ("another room beyond the exit (openings up to 30 deg wide, the room's side walls "
+            "go on 1.5 m past the door's wall)") in m.conductor.reason
     # The door come through is no exit of the new room; the new room's exit goes first.
     actions = m.tick(exit_answered=True, exit_xy=(5.1, 0.2), exit_alternatives=((9.0, 3.0),))
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (9.0, 3.0))]
@@ -413,9 +412,10 @@ def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_
     assert m.conductor.goal_xy == pytest.approx(tuple(np.array([9.0, 3.0]) + 1.5 * along))
     m.tick(robot_xy=m.conductor.goal_xy, navigator_state="reached")
     m.tick(scan_running=True, navigator_state="")
-    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE)
-    assert m.conductor.phase == Phase.DONE
-    assert m.conductor.reason.startswith("passed through the exit: ")
+    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.0)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "passed through the exit: openings up to 150 deg wide around, the room's side "
+        "walls end at the door's wall (0.0 m past it)")
 
 
 def test_the_first_rooms_untried_candidates_come_after_the_new_rooms():
@@ -492,35 +492,92 @@ def test_an_opening_only_toward_the_door_come_through_is_another_room():
     assert kinds(m.tick(scan_running=False, walls_around=walls)) == [ActionKind.FIND_EXIT]
 
 
-def bearings(open_deg):
-    """A 72-bearing walls_around answer (5 deg apart) with no wall at the listed bearings."""
-    free = {int(d) // 5 % 72 for d in open_deg}
-    return tuple(k not in free for k in range(72))
-
-
-# The robot at (6.5, 0) east of the door come through, (5, 0): the door's wall runs north-south,
-# and each side's bearings lie within 45 deg of north (45-135) or of south (225-315), 19 each.
-@pytest.mark.parametrize("open_deg, phase, share", [
-    ((85, 90, 95, 265, 270, 275), Phase.DONE, 16),        # 3 of 19 open both ways: outside
-    ((90, 95, 265, 270, 275), Phase.FIND_EXIT, 11),       # 2 of 19 to the north: walled in
-    (range(45, 140, 5), Phase.FIND_EXIT, 0),              # a blank side wall, the other walled
-    # A blank wall ahead: a 65-deg opening, but not along the door's wall.
-    (list(range(330, 360, 5)) + list(range(0, 35, 5)), Phase.FIND_EXIT, 0),
-])
-def test_outside_is_open_along_the_doors_wall_both_ways(open_deg, phase, share):
+@pytest.mark.parametrize("free_bearings, phase", [(9, Phase.DONE), (8, Phase.FIND_EXIT)])
+def test_a_45_deg_opening_of_the_72_bearings_is_a_way_out_and_40_deg_a_room(free_bearings, phase):
+    # The grid's 72 bearings are 5 deg apart; benches saw 45 deg outside, between the building
+    # and the wall beyond its exit.
     m = looking_around()
-    m.tick(scan_running=False, walls_around=bearings(open_deg))
+    walls = (False,) * free_bearings + (True,) * (72 - free_bearings)
+    m.tick(scan_running=False, walls_around=walls)
     assert m.conductor.phase == phase
-    assert f"{share} % of the bearings along the door's wall open" in m.conductor.reason
+    assert f"openings up to {5 * free_bearings} deg wide" in m.conductor.reason
 
 
-def test_the_last_tracked_look_decides_when_tracking_is_lost_at_its_end():
+def test_a_wide_opening_between_side_walls_going_on_past_the_doors_wall_is_another_room():
+    # Through a partition's door into a room with a blank wall ahead: the building's walls go
+    # on beside the robot, however open the blank wall looks.
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=2.5)
+    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
+    assert ("another room beyond the exit (openings up to 150 deg wide, but the room's side "
+            "walls go on 2.5 m past the door's wall)") in m.conductor.reason
+    # Less than room_side_walls_min_m of them (a wall beyond the exit crossing their line): out.
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.3)
+    assert m.conductor.phase == Phase.DONE
+
+
+@pytest.mark.parametrize("side_m, said", [
+    (0.0, "another room beyond the exit (openings up to 30 deg wide, the room's side walls end "
+          "at the door's wall (0.0 m past it))"),
+    (None, "another room beyond the exit (openings up to 30 deg wide, no room outline to "
+           "measure the room's side walls on)")])
+def test_walls_all_round_are_another_room_whether_or_not_the_side_walls_go_on(side_m, said):
+    # Side walls ending at the door's wall did not make walls all round outside: on the benched
+    # missions each such look stood in a room of the building.
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_ROOM, side_walls_beyond_m=side_m)
+    assert m.conductor.phase == Phase.FIND_EXIT
+    assert said in m.conductor.reason
+
+
+def test_the_side_walls_of_the_last_tracked_look_decide_when_tracking_is_lost_at_its_end():
+    m = looking_around()
+    m.tick(walls_around=WALLS_OUTSIDE, side_walls_beyond_m=2.5)
+    m.tick(tracking_lost=True, walls_around=(), side_walls_beyond_m=0.0)
+    m.tick(tracking_lost=False, scan_running=False)
+    m.tick()
+    assert m.conductor.phase == Phase.FIND_EXIT and "side walls go on 2.5 m" in m.conductor.reason
+
+
+def test_no_map_to_look_around_in_is_done_after_the_exit():
+    m = looking_around()
+    assert kinds(m.tick(scan_running=False, walls_around=())) == [ActionKind.STOP]
+    assert m.conductor.phase == Phase.DONE and "no map to look around in" in m.conductor.reason
+
+
+def test_tracking_lost_looking_around_outside_the_outline_is_done_else_the_last_look_decides():
+    m = looking_around()  # at (6.5, 0), 0.5 m outside ROOM
+    m.tick(robot_xy=(7.5, 0.0), walls_around=WALLS_ROOM)
+    m.tick(tracking_lost=True, walls_around=())
+    assert kinds(m.tick(dt=20.0)) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "left the room: tracking lost 1.50 m outside its outline and not back in 20 s")
     m = looking_around()
     m.tick(walls_around=WALLS_ROOM)
     m.tick(tracking_lost=True, walls_around=())
+    assert (m.conductor.state, m.conductor.phase) == (State.LOST, Phase.LOOK_AROUND)
     m.tick(tracking_lost=False, scan_running=False)
     m.tick()
-    assert m.conductor.phase == Phase.FIND_EXIT and "0 % of the bearings" in m.conductor.reason
+    # The scan ended while lost: the last look decides.
+    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
+
+
+def test_tracking_lost_past_the_exit_and_never_back_is_done_inside_the_outline_gave_up():
+    m = looking_around()  # at (6.5, 0), 0.5 m outside ROOM: within left_room_margin_m
+    m.tick(walls_around=WALLS_ROOM)
+    m.tick(tracking_lost=True, walls_around=())
+    assert m.conductor.state == State.LOST
+    m.tick(dt=m.conductor.config.lost_timeout_s + 1.0, tracking_lost=True)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "left the room: tracking lost 0.50 m outside its outline and not back in "
+                    "60 s of relocalising")
+    m = looking_around()
+    m.tick(robot_xy=(4.5, 0.0), walls_around=WALLS_ROOM)  # back inside the outline
+    m.tick(tracking_lost=True, walls_around=())
+    m.tick(dt=m.conductor.config.lost_timeout_s + 1.0, tracking_lost=True)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.GAVE_UP, "SLAM tracking lost for more than 60 s")
 
 
 def test_the_number_of_rooms_is_bounded():
@@ -539,9 +596,9 @@ def test_the_number_of_rooms_is_bounded():
     actions = m.tick(scan_running=False, walls_around=WALLS_ROOM)
     assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
     assert m.conductor.phase == Phase.GAVE_UP
-    assert m.conductor.reason == ("walled in beyond the exit (0 % of the bearings along the door's "
-                                  "wall open on its more closed side, openings up to 30 deg wide) "
-                                  "after 3 rooms")
+    assert m.conductor.reason == ("walls all round beyond the exit (openings up to 30 deg wide, "
+                                  "no room outline to measure the room's side walls on) after 3 "
+                                  "rooms")
 
 
 def test_not_initialised_slam_is_not_a_loss():

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from sparse_nav.conductor.grid_queries import (GridView, open_beside_share, order_exits,
-                                                steps_out_of_obstacle, widest_opening_deg)
+from sparse_nav.conductor.grid_queries import (GridView, order_exits, steps_out_of_obstacle,
+                                                widest_opening_deg)
 
 
 @pytest.fixture
@@ -131,12 +131,12 @@ def test_free_distance_can_take_the_map_edge_for_unknown(room):
     assert room.free_distance(0.0, 0.0, 0.0, off_map_free=True) == pytest.approx(2.9, abs=0.06)
 
 
-def _building(side_walls_m, far_wall=False, backdrop=False):
-    """A 4 m x 4 m room (0, 0)-(4, 4) at 0.05 m with a door at (4, 2) in its east wall; its north
-    and south walls carried on east for side_walls_m (a partition's door into a room), with a
-    far wall closing them (far_wall); or a wall beyond the exit (x = 6, y -0.5..4.5)."""
+def _building(side_walls_m, backdrop=False):
+    """A 4 m x 4 m room (outline (0, 0)-(4, 4)) at 0.05 m with a door at (4, 2) in its east wall;
+    its north and south walls carried on east for side_walls_m; a wall beyond the door (x = 6,
+    y -0.5..4.5, crossing both side lines) with backdrop."""
     res = 0.05
-    cells = np.full((240, 320), -1, dtype=np.int8)   # x in [-2, 14), y in [-2, 10)
+    cells = np.full((240, 280), -1, dtype=np.int8)   # x, y in [-2, 12)
 
     def wall(x0, y0, x1, y1):
         for t in np.linspace(0.0, 1.0, 800):
@@ -148,34 +148,24 @@ def _building(side_walls_m, far_wall=False, backdrop=False):
     if side_walls_m > 0:
         wall(4, 0, 4 + side_walls_m, 0)
         wall(4, 4, 4 + side_walls_m, 4)
-    if far_wall:
-        wall(4 + side_walls_m, 0, 4 + side_walls_m, 4)
     if backdrop:
         wall(6, -0.5, 6, 4.5)
     return GridView(cells, res, (-2.0, -2.0))
 
 
-@pytest.mark.parametrize("building, outside", [
-    (dict(side_walls_m=0.0, backdrop=True), True),      # out, a wall beyond the exit
-    (dict(side_walls_m=0.0), True),                     # out, nothing beyond
-    (dict(side_walls_m=4.0, far_wall=True), False),     # a room, walls all round
-    (dict(side_walls_m=9.0), False),                    # a room whose far wall is blank
-])
-def test_open_along_the_doors_wall_both_ways_is_outside(building, outside):
-    # The robot 1.4 m past the door; the door come through due west of it.
-    walls = _building(**building).walls_around(5.4, 2.0, 8.0)
-    share = open_beside_share(walls, math.pi)
-    assert (share >= 0.15) == outside
-    # Without a door bearing, the most open way across is taken: the same verdicts here.
-    assert (open_beside_share(walls) >= 0.15) == outside
+OUTLINE = ((0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0))
 
 
-def test_open_beside_share_counts_the_more_closed_side():
-    walls = [True] * 72
-    for k in (18, 19, 20, 54):        # north 90-100 deg, south 270 deg
-        walls[k] = False
-    assert open_beside_share(walls, 0.0) == pytest.approx(1 / 19)
-    assert open_beside_share(walls, math.pi) == pytest.approx(1 / 19)
-    assert open_beside_share(walls, 0.0, half_fan_deg=5.0) == pytest.approx(1 / 3)
-    assert open_beside_share([True] * 72, 0.0) == 0.0
-    assert open_beside_share([], 0.0) == 1.0
+def test_side_walls_beyond_a_door_show_the_building_going_on():
+    # Through an outer wall the side walls turn at the corners; a wall standing beyond the exit
+    # crosses their lines over a few cells only.
+    assert _building(0.0).side_walls_beyond_m(OUTLINE, (4.0, 2.0)) == 0.0
+    assert _building(0.0, backdrop=True).side_walls_beyond_m(OUTLINE, (4.0, 2.0)) < 0.5
+    # Through a partition's door they go on: mapped 0.5 m (where the count starts) to 3 m.
+    assert _building(3.0).side_walls_beyond_m(OUTLINE, (4.0, 2.0)) == pytest.approx(2.5, abs=0.1)
+    # The outline's vertex order and the door's place along its wall do not matter.
+    assert _building(3.0).side_walls_beyond_m(OUTLINE[::-1], (4.1, 3.0)) == \
+        pytest.approx(2.5, abs=0.1)
+    # No outline, or no door: nothing to go on from.
+    assert _building(3.0).side_walls_beyond_m((), (4.0, 2.0)) is None
+    assert _building(3.0).side_walls_beyond_m(OUTLINE, None) is None

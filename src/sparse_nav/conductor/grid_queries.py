@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from sparse_nav.exit_finder.geometry import boundary_distances
 from sparse_nav.scanning import Step
 
 
@@ -88,6 +89,38 @@ class GridView:
         values[on_map] = self.cells[rows[on_map], cols[on_map]]
         return values
 
+    def side_walls_beyond_m(self, outline, door_xy, near_m=0.5, far_m=4.0, tolerance_m=0.4,
+                            occupied_at=50):
+        """Metres of wall the map shows along the room's side walls carried on past the wall of
+        the door door_xy, the longer of the two sides: the outline edges on either side of the
+        door's edge, continued from near_m to far_m beyond its corners, with occupied cells
+        within tolerance_m of the line. A partition's door leads on between the building's walls;
+        past an outer wall they turn at the corners, and a wall standing beyond crosses the line
+        over a few cells only. None without an outline (fewer than three vertices) or a door."""
+        poly = np.asarray(outline, dtype=float).reshape(-1, 2)
+        if len(poly) < 3 or door_xy is None:
+            return None
+        n = len(poly)
+        door = np.asarray(door_xy, dtype=float)
+        k = int(boundary_distances(door, poly)[1][0])
+        step = self.resolution_m / 2.0
+        along = np.arange(near_m, far_m + 1e-9, step)
+        across = np.arange(-tolerance_m, tolerance_m + 1e-9, step)
+        best = 0.0
+        # Edge k runs from corner poly[k] to poly[k + 1]; each side edge ends at one of them.
+        for corner, before in ((poly[k], poly[k - 1]), (poly[(k + 1) % n], poly[(k + 2) % n])):
+            direction = corner - before
+            length = float(np.hypot(*direction))
+            if length < 1e-9:
+                continue
+            u = direction / length
+            normal = np.array([-u[1], u[0]])
+            # (along, across, 2): a band of points around the continued edge.
+            pts = corner + along[:, None, None] * u + across[None, :, None] * normal
+            walled = np.any(self.values_at(pts[..., 0], pts[..., 1]) >= occupied_at, axis=1)
+            best = max(best, float(np.count_nonzero(walled)) * step)
+        return best
+
     def free_share_beyond(self, exit_xy, from_xy, near_m, far_m, occupied_at=50):
         """Share of the cells from near_m to far_m beyond exit_xy, on the line from from_xy
         through it, that the map knows to be free. The map's free space comes from rays to the
@@ -125,29 +158,6 @@ def widest_opening_deg(walls, skip_bearing_rad=None):
             widest = max(widest, run)
         run, run_has_skip = 0, False
     return 360.0 * widest / n
-
-
-def open_beside_share(walls, door_bearing_rad=None, half_fan_deg=45.0):
-    """The share of bearings without a wall in a :meth:`GridView.walls_around` answer on the
-    more closed of the two sides across the way come through: bearings within half_fan_deg of
-    door_bearing_rad +- 90 deg. Beyond a building's outer wall the space along the wall is open
-    toward both of its ends; in a room the side walls close at least one side. Without a door
-    bearing, the most open of the answer's own bearings is taken for it."""
-    walls = np.asarray(walls, dtype=bool)
-    n = len(walls)
-    if n == 0:
-        return 1.0
-    bearings = 2.0 * math.pi * np.arange(n) / n
-    doors = bearings if door_bearing_rad is None else np.array([door_bearing_rad])
-    best = 0.0
-    for door in doors:
-        shares = []
-        for side in (0.5 * math.pi, -0.5 * math.pi):
-            off = (bearings - door - side + math.pi) % (2.0 * math.pi) - math.pi
-            on_side = np.abs(off) <= math.radians(half_fan_deg) + 1e-9
-            shares.append(float(np.mean(~walls[on_side])) if on_side.any() else 0.0)
-        best = max(best, min(shares))
-    return best
 
 
 def order_exits(candidates, grid, from_xy, near_m, far_m, min_free_share):

@@ -7,10 +7,10 @@ state or phase is recorded with its reason, so a run can be explained afterwards
 States (004): START builds the first map (scans), IDLE waits with a healthy map, GOAL navigates,
 LOST waits for tracking to come back (motion stopped), RECOVER frees a robot that the map puts
 inside an obstacle. Phases (000): initial scan -> wall scan -> find exit -> go to the exit -> pass
-through -> done, or gave up with the reason. Beyond an exit the robot looks around: walls closing
-either side along the door's wall mean another room of the building (a partition's door), whose
-exit is found in turn; a room with no door but that one sends the robot back to the room before's
-next candidate.
+through -> done, or gave up with the reason. Beyond an exit the robot looks around: the room's side
+walls going on past the door's wall, or walls all round where no room outline measures them, mean
+another room of the building (a partition's door), whose exit is found in turn; a room with no
+door but that one sends the robot back to the room before's next candidate.
 """
 import dataclasses
 import enum
@@ -19,7 +19,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from sparse_nav.conductor.grid_queries import open_beside_share, widest_opening_deg
+from sparse_nav.conductor.grid_queries import widest_opening_deg
 from sparse_nav.exit_finder.geometry import boundary_distances, points_in_polygon
 
 
@@ -90,6 +90,10 @@ class Observation:
     # GridView.walls_around at the robot (bearings from the map's x axis), while looking around
     # beyond an exit; empty without a map or a pose.
     walls_around: Tuple = ()
+    # GridView.side_walls_beyond_m of room_outline at the door come through, while looking around:
+    # metres of the room's side walls the map shows carried on past the door's wall; None
+    # without an outline (or a door) to measure them on.
+    side_walls_beyond_m: Optional[float] = None
     navigator_state: str = ""            # navigator/status state name, lower case
     motion_failed: bool = False          # the motion layer gave up (blocked, refused commands)
     start_requested: bool = False
@@ -144,13 +148,14 @@ class ConductorConfig:
                                          # no room to look for the exit in
     max_rooms: int = 3                   # rooms escaped in turn; 1: done after the first exit
                                          # without looking around
-    outside_open_share: float = 0.15     # beyond an exit, bearings open (no wall within
-                                         # walls_around_range_m) on both sides along the door's
-                                         # wall, each side this share of its bearings at least:
-                                         # outside; less on either side: another room
-    beside_half_fan_deg: float = 45.0    # ... a side's bearings: this close to square to the
-                                         # way come through
+    room_max_opening_deg: float = 42.5   # beyond an exit, openings no wider than this all round
+                                         # (the door come through aside): another room; between
+                                         # the 5-deg bearings, so 45 deg counts as a way out
     walls_around_range_m: float = 8.0    # ... walls this close count (the node's grid query)
+    room_side_walls_min_m: float = 0.5   # the room's side walls mapped this far on past the
+                                         # door's wall: another room however wide the openings
+                                         # (a partition's door; a blank wall ahead); less, or no
+                                         # outline to measure them on: the openings decide
 
     def validate(self):
         for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts",
@@ -161,7 +166,7 @@ class ConductorConfig:
                      "lost_timeout_s", "recover_timeout_s", "recover_clear_s",
                      "left_room_margin_m", "inside_room_margin_m", "rejected_exit_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m",
-                     "walls_around_range_m", "beside_half_fan_deg", "merge_wait_s",
+                     "walls_around_range_m", "room_side_walls_min_m", "merge_wait_s",
                      "map_settle_s", "left_room_wait_s", "scan_retry_lost_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -174,11 +179,9 @@ class ConductorConfig:
         if not 0 <= self.exit_min_free_share <= 1:
             raise ValueError(f"exit_min_free_share must be in [0, 1], got "
                              f"{self.exit_min_free_share}")
-        if self.beside_half_fan_deg > 90:
-            raise ValueError(f"beside_half_fan_deg must be <= 90, got {self.beside_half_fan_deg}")
-        if not 0 < self.outside_open_share <= 1:
-            raise ValueError(f"outside_open_share must be in (0, 1], got "
-                             f"{self.outside_open_share}")
+        if not 0 < self.room_max_opening_deg < 360:
+            raise ValueError(f"room_max_opening_deg must be in (0, 360), got "
+                             f"{self.room_max_opening_deg}")
         if not (math.isfinite(self.pass_through_m) and self.pass_through_m >= 0):
             raise ValueError(f"pass_through_m must be finite and >= 0, got {self.pass_through_m}")
 
@@ -271,8 +274,8 @@ class Conductor:
         # Beyond the exit: how far outside the room outline the robot was last tracked while the
         # outline was at hand (a change of SLAM map takes the outline away, not where it was).
         self._outside_by = 0.0
-        # walls_around of the newest look around while tracking
-        self._last_look = ()
+        # (walls_around, side_walls_beyond_m) of the newest look around while tracking
+        self._last_look = ((), None)
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
@@ -332,7 +335,7 @@ class Conductor:
             if self.phase in (Phase.PASS_THROUGH, Phase.LOOK_AROUND) and len(obs.room_outline) >= 3:
                 self._outside_by = distance_outside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.LOOK_AROUND and len(obs.walls_around):
-                self._last_look = tuple(obs.walls_around)
+                self._last_look = (tuple(obs.walls_around), obs.side_walls_beyond_m)
         if self.phase == Phase.FIND_EXIT and obs.exit_answered:
             # Seen once: an answer that arrives while lost or recovering is acted on after.
             self._exit_answer = (obs.exit_xy, tuple(obs.exit_alternatives), obs.exit_leads_out)
@@ -357,7 +360,7 @@ class Conductor:
         self._alternatives = []
         self._alternatives_map = self._merge_wait_since_s = None
         self._rescans = 0
-        self._last_look = ()
+        self._last_look = ((), None)
         self._outside_by = 0.0
         self._room_unconfirmed = False
         self.exit_xy = self.goal_xy = None
@@ -615,13 +618,13 @@ class Conductor:
         """The exit come through, beyond which the robot looks around (None before one)."""
         return self._door_xy
 
-    def _door_bearing(self):
-        """Bearing (rad, from the map's x axis) from the robot to the exit it came through, or
-        None without both."""
-        if self._door_xy is None or self._last_tracked_xy is None:
-            return None
-        return math.atan2(self._door_xy[1] - self._last_tracked_xy[1],
-                          self._door_xy[0] - self._last_tracked_xy[0])
+    def _widest_opening(self, walls):
+        """The widest opening around the robot but the one toward the exit it came through."""
+        skip = None
+        if self._door_xy is not None and self._last_tracked_xy is not None:
+            skip = math.atan2(self._door_xy[1] - self._last_tracked_xy[1],
+                              self._door_xy[0] - self._last_tracked_xy[0])
+        return widest_opening_deg(walls, skip)
 
     def _look_around(self, t, why, door_xy):
         """Beyond the exit: look around there, door_xy the door come through; done at once
@@ -629,33 +632,43 @@ class Conductor:
         if self.config.max_rooms == 1:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
-        self._last_look = ()
+        self._last_look = ((), None)
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
 
     def _looked_around(self, t, obs):
-        """Open along the door's wall on both sides: out, done. Beyond a building's wall the space
-        along it is open toward both ends, and a wall standing beyond the exit closes neither;
-        in a room of the building (a partition's door) the side walls close at least one side,
-        even where a blank wall ahead maps as open. Walled in: another room, whose exit is looked
-        for from here, the door come through out of the running."""
+        """The room's side walls going on past the door's wall, or walls all round (but for the
+        door come through) where no outline measures the side walls: another room, whose exit
+        is looked for from here, the door come through out of the running; else out: done.
+        Walls all round are another room too when the side walls end at the door's wall: that
+        rule (out) was wrong each of the six times it fired on 100 benched drone missions."""
         cfg = self.config
-        walls = tuple(obs.walls_around) if obs.walls_around else self._last_look
+        walls, side_m = ((tuple(obs.walls_around), obs.side_walls_beyond_m) if obs.walls_around
+                         else self._last_look)
         if not len(walls):
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit (no map to look "
                                                  "around in)")
             return [Action(ActionKind.STOP)]
-        door = self._door_bearing()
-        open_share = open_beside_share(walls, door, cfg.beside_half_fan_deg)
-        seen = (f"{100 * open_share:.0f} % of the bearings along the door's wall open on its more "
-                f"closed side, openings up to {widest_opening_deg(walls, door):.0f} deg wide")
-        if open_share >= cfg.outside_open_share:
-            self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen}")
+        opening = self._widest_opening(walls)
+        seen = f"openings up to {opening:.0f} deg wide"
+        wide = opening > cfg.room_max_opening_deg
+        walled_beside = side_m is not None and side_m >= cfg.room_side_walls_min_m
+        if side_m is None:
+            side = "no room outline to measure the room's side walls on"
+        elif walled_beside:
+            side = f"the room's side walls go on {side_m:.1f} m past the door's wall"
+        else:
+            side = f"the room's side walls end at the door's wall ({side_m:.1f} m past it)"
+        if not walled_beside and wide:
+            self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
+                                                 f"{side}")
             return [Action(ActionKind.STOP)]
+        # A blank wall ahead looks like open space; walls going on beside it do not.
+        seen += f", {'but ' if wide else ''}{side}"
         if self.rooms >= cfg.max_rooms:
-            return self._give_up(t, f"walled in beyond the exit ({seen}) after {self.rooms} "
-                                    f"rooms")
+            kind = "another room" if wide else "walls all round"
+            return self._give_up(t, f"{kind} beyond the exit ({seen}) after {self.rooms} rooms")
         if self._door_xy is not None:
             self._rejected.append(self._door_xy)
         self.rooms += 1

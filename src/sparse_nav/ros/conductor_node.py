@@ -175,6 +175,8 @@ class ConductorNode:
                        and pose is not None)
             obs.walls_around = tuple(grid.walls_around(
                 pose[0], pose[1], self.config.walls_around_range_m)) if looking else ()
+            obs.side_walls_beyond_m = grid.side_walls_beyond_m(
+                obs.room_outline, self.conductor.door_xy) if looking else None
             obs.scan_running = self.scan_thread is not None and self.scan_thread.is_alive()
             obs.scan_resumable = self.paused_scan is not None and not self.paused_scan.done
             obs.start_requested = self.requests["start"]

@@ -639,10 +639,9 @@ class Conductor:
 
     def _looked_around(self, t, obs):
         """The room's side walls going on past the door's wall, or walls all round (but for the
-        door come through) where no outline measures the side walls: another room, whose exit
-        is looked for from here, the door come through out of the running; else out: done.
-        Walls all round are another room too when the side walls end at the door's wall: that
-        rule (out) was wrong each of the six times it fired on 100 benched drone missions."""
+        door come through) whatever the side walls: another room, whose exit is looked for from
+        here, the door come through out of the running; else out: done (config/conductor.yaml
+        says why side walls ending at the door's wall no longer mean out)."""
         cfg = self.config
         walls, side_m = ((tuple(obs.walls_around), obs.side_walls_beyond_m) if obs.walls_around
                          else self._last_look)

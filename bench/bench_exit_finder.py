@@ -62,6 +62,7 @@ DT_S = 0.05                 # simulation step while waiting for a drone command 
 HIT_MARGIN_M = 0.3          # hit: within half the door width plus this of a true door centre
 CACHE_VERSION = 1
 LARGE_CLOUD_POINTS = 20000
+DEFAULT_ROOMS = 400         # seeds 0..399; the door ranker trains on later seeds only
 TUNED_ROOMS = 200           # the finders' defaults were chosen looking at seeds 0..199
 # Extra rows: a method with a non-default configuration, "name": (method, config changes).
 VARIANTS = {
@@ -206,10 +207,16 @@ def _cached_scan(args):
     return path
 
 
-def load_rooms(n_rooms, cache, jobs):
-    """Scan (or load) rooms 0..n_rooms-1; a list of dicts with the arrays and the info dict."""
+def default_cache():
+    """The scan cache directory named after the simulator's sources."""
+    return os.path.join(tempfile.gettempdir(), f"sparse_nav_exit_bench_{_sources_hash()}")
+
+
+def load_rooms(seeds, cache, jobs):
+    """Scan (or load) the rooms of the given seeds; a list of dicts with the arrays and the
+    info dict."""
     os.makedirs(cache, exist_ok=True)
-    tasks = [(seed, cache) for seed in range(n_rooms)]
+    tasks = [(seed, cache) for seed in seeds]
     if jobs > 1:
         with multiprocessing.Pool(jobs) as pool:
             paths = pool.map(_cached_scan, tasks, chunksize=1)
@@ -285,7 +292,7 @@ def _stats(values):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--rooms", type=int, default=400, help="rooms (seeds 0..N-1)")
+    parser.add_argument("--rooms", type=int, default=DEFAULT_ROOMS, help="rooms (seeds 0..N-1)")
     parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
                         help="parallel simulator scans (the finders run one at a time)")
     parser.add_argument("--cache", default=None, help="directory of cached scans")
@@ -294,10 +301,9 @@ def main(argv=None):
                              f"{', '.join(VARIANTS)})")
     args = parser.parse_args(argv)
     methods = [m for m in args.methods.split(",") if m]
-    cache = args.cache or os.path.join(tempfile.gettempdir(),
-                                       f"sparse_nav_exit_bench_{_sources_hash()}")
+    cache = args.cache or default_cache()
     t0 = time.perf_counter()
-    rooms = load_rooms(args.rooms, cache, args.jobs)
+    rooms = load_rooms(range(args.rooms), cache, args.jobs)
     scan_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     # The finders run one at a time in this process: parallel runs would disturb the timings.

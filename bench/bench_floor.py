@@ -85,10 +85,9 @@ def main(argv=None):
     if binary is None:
         print("bench_floor: build_grid not found: run make build first", file=sys.stderr)
         return 2
-    cache = args.cache or os.path.join(tempfile.gettempdir(),
-                                       f"sparse_nav_exit_bench_{bench_exit_finder._sources_hash()}")
+    cache = args.cache or bench_exit_finder.default_cache()
     t0 = time.perf_counter()
-    rooms = [r for r in bench_exit_finder.load_rooms(args.rooms, cache, args.jobs)
+    rooms = [r for r in bench_exit_finder.load_rooms(range(args.rooms), cache, args.jobs)
              if len(r["points"]) >= 100 and np.isfinite(r["affine_a"]).all()]
     rows = []
     with tempfile.TemporaryDirectory(prefix="sparse_nav_floor_") as workdir:

@@ -122,6 +122,12 @@ class ExitFinderConfig:
     #                                    seen through it when at least this many were (0: never)
     gap_outline_smooth: int = 3        # outline: running median over this many bearings each side
     gap_max_exits: int = 5             # exits reported
+    # -- ranked method (beyond seed 000; see doors.py and ranker.py): the door candidates of the
+    #    gaps method at three bearing resolutions and the gaps in RANSAC walls, scored by a model
+    #    learned on simulator rooms (bench/train_door_ranker.py)
+    rank_model: str = ""               # the model's JSON file; "": the one shipped with the package
+    rank_merge_radius: float = 0.1     # r.u.: a candidate this close to a better one is that door
+    rank_min_probability: float = 0.0  # candidates the model rates below this are not reported
     external_weight: float = 0.5       # confidence of a door gap given by the feature extractor
     external_match: float = 0.15       # r.u.: own and external gaps closer than this are one door
     auto_min_confidence: float = 0.05  # auto: a gaps answer below this falls back to the seed
@@ -172,7 +178,8 @@ class ExitFinderConfig:
                      "gap_viewpoint_step", "gap_grazing", "gap_log_bin", "gap_log_smooth",
                      "gap_min_range", "gap_max_range",
                      "gap_min_width", "gap_max_width", "gap_max_span_deg", "gap_door_width",
-                     "gap_door_width_sigma", "gap_beyond_points", "external_match"):
+                     "gap_door_width_sigma", "gap_beyond_points", "external_match",
+                     "rank_merge_radius"):
             positive(name)
         for name in ("min_concave_depth", "gap_beyond_margin", "gap_jump",
                      "gap_min_surface_points", "gap_spread_free", "gap_spread_weight"):
@@ -189,9 +196,11 @@ class ExitFinderConfig:
             if not 0 <= getattr(self, name) < 90:
                 raise ValueError(f"{name} must be in [0, 90), got {getattr(self, name)}")
         for name in ("gap_surface_share", "gap_notch_share", "external_weight", "gap_cover_weight",
-                     "gap_occluder_share", "auto_min_confidence"):
+                     "gap_occluder_share", "auto_min_confidence", "rank_min_probability"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        if not isinstance(self.rank_model, str):
+            raise ValueError(f"rank_model must be a file name (str), got {self.rank_model!r}")
         if self.gap_min_width >= self.gap_max_width:
             raise ValueError("gap_min_width must be < gap_max_width")
         if self.gap_min_range >= self.gap_max_range:

@@ -29,16 +29,18 @@ import time
 import numpy as np
 
 from sparse_nav.exit_finder import cloud as cloudlib
+from sparse_nav.exit_finder import doors as doorslib
 from sparse_nav.exit_finder import gaps as gapslib
 from sparse_nav.exit_finder import geometry as geo
 from sparse_nav.exit_finder import seed as seedlib
 from sparse_nav.exit_finder.config import ExitFinderConfig
 from sparse_nav.exit_finder.geometry import Line
+from sparse_nav.exit_finder.ranker import RankerModelError, load_ranker
 from sparse_nav.exit_finder.result import (STATUS_NO_EXIT, STATUS_OK, ExitFinderError,
                                            ExitResult)
 
 METHODS = ("seed", "seed_count", "seed_extent", "dbscan", "farthest_corner", "concave_vertex",
-           "gaps", "auto")
+           "gaps", "ranked", "auto")
 DEFAULT_METHOD = "gaps"
 
 
@@ -146,6 +148,62 @@ def _gaps(prep, cfg, rng, door_gaps, viewpoint=None):
     return _Answer(exits=found.exits, corners=found.outline, reason=reason, details=found.details)
 
 
+def ranked_candidates(prep, cfg, rng, centre):
+    """The ``ranked`` method's candidates seen from ``centre`` (r.u.): (scene, doors, feature
+    matrix). The ranker's training script calls this too, so that it learns on exactly what the
+    method sees."""
+    scene = doorslib.Scene(prep.q, centre, cfg)
+    doors = doorslib.candidates(scene, rng)
+    return scene, doors, doorslib.feature_matrix(scene, doors)
+
+
+def _rank(prep, cfg, rng, door_gaps, centre):
+    """Candidates from ``centre`` scored by the ranker, fused with external door gaps, merged
+    (a candidate within ``rank_merge_radius`` of a better one is the same door) and cut to
+    ``gap_max_exits`` and ``rank_min_probability``: (exits, scene, candidates, best candidate or
+    None)."""
+    try:
+        ranker = load_ranker(cfg.rank_model)
+    except RankerModelError as exc:
+        raise ExitFinderError("bad_input", str(exc), prep.n_in) from None
+    scene, doors, x = ranked_candidates(prep, cfg, rng, centre)
+    prob = ranker.probability(x)
+    cands = [[d.centre, float(p), None, None] for d, p in zip(doors, prob)]
+    cands = gapslib.fuse_external(cands, door_gaps, scene.profile, cfg)
+    order = sorted(range(len(cands)), key=lambda i: -cands[i][1])
+    kept = []
+    for i in order:
+        if cands[i][1] < cfg.rank_min_probability or len(kept) == cfg.gap_max_exits:
+            break
+        if all(np.hypot(*(cands[i][0] - cands[k][0])) > cfg.rank_merge_radius for k in kept):
+            kept.append(i)
+    exits = [(float(cands[i][0][0]), float(cands[i][0][1]), cands[i][1]) for i in kept]
+    best = doors[kept[0]] if kept and kept[0] < len(doors) else None
+    return exits, scene, doors, best
+
+
+def _ranked(prep, cfg, rng, door_gaps, viewpoint=None):
+    given = _viewpoint(prep, cfg, viewpoint)
+    centre = gapslib.choose_viewpoint(prep.q, cfg, rng, given)
+    exits, scene, doors, best = _rank(prep, cfg, rng, door_gaps, centre)
+    reason = "door candidates of several detectors ranked by the learned model"
+    if not exits and given is not None:
+        # As for gaps: a camera that moved while mapping may have seen the door from elsewhere.
+        estimated = gapslib.estimate_viewpoint(prep.q, cfg, rng)
+        exits, scene, doors, best = _rank(prep, cfg, rng, door_gaps, estimated)
+        reason += " (from the viewpoint the cloud suggests; none from the given one)"
+    first = doorslib.SOURCES[0]
+    notches = [d.jambs for d in doors if d.source == first]
+    outline = gapslib.outline_from_profile(scene.profile, notches, scene.profile_cfg)
+    if outline is None:
+        outline = geo.convex_hull(prep.q)
+    details = {"profile": np.array([scene.profile.point(i)
+                                    for i in range(len(scene.profile.angles))])}
+    if best is not None:
+        details["line_points"] = doorslib.jamb_points(scene, best)
+    return _Answer(exits=exits, corners=outline, reason=reason, details=details)
+
+
 def _auto(prep, cfg, rng, door_gaps, viewpoint=None):
     """Per cloud: ``gaps`` when it finds an opening with confidence >= auto_min_confidence;
     else the seed's corner when the seed finds a four-sided room with an empty corner; else the
@@ -218,6 +276,8 @@ def find_exit(points, method=DEFAULT_METHOD, config=None, up_axis="-y", seed=Non
             name = f"auto:{chosen}"
         elif method == "gaps":
             answer, name = _gaps(prep, cfg, rng, ext, viewpoint), method
+        elif method == "ranked":
+            answer, name = _ranked(prep, cfg, rng, ext, viewpoint), method
         elif method == "concave_vertex":
             answer, name = _concave(prep, cfg), method
         else:

@@ -389,20 +389,21 @@ def _median_ranges(ranges, half):
     return np.where(np.isfinite(ranges), med, np.nan)
 
 
-def find_gaps(q, cfg, rng=None, external=None, viewpoint=None):
-    """Steps 1-4 on IPCL points q (r.u.); external door gaps as (K, 3) r.u. or None.
-
-    ``viewpoint`` (r.u.) is where the map was seen from; when None, ``gap_viewpoint`` says how
-    to get it (``"centroid"``: the mean of the points; otherwise :func:`estimate_viewpoint`,
-    whose point subset ``rng`` draws).
-    """
+def choose_viewpoint(q, cfg, rng=None, viewpoint=None):
+    """Where the map was seen from (r.u.): ``viewpoint`` when given; else as ``gap_viewpoint``
+    says (``"centroid"``: the mean of the points; otherwise :func:`estimate_viewpoint`, whose
+    point subset ``rng`` draws)."""
     if viewpoint is not None:
-        centre = np.asarray(viewpoint, dtype=float)
-    elif cfg.gap_viewpoint == "centroid":
-        centre = q.mean(axis=0)
-    else:
-        centre = estimate_viewpoint(q, cfg, rng if rng is not None else
-                                    np.random.default_rng(cfg.seed))
+        return np.asarray(viewpoint, dtype=float)
+    if cfg.gap_viewpoint == "centroid":
+        return q.mean(axis=0)
+    return estimate_viewpoint(q, cfg, rng if rng is not None else np.random.default_rng(cfg.seed))
+
+
+def find_gaps(q, cfg, rng=None, external=None, viewpoint=None):
+    """Steps 1-4 on IPCL points q (r.u.); external door gaps as (K, 3) r.u. or None;
+    ``viewpoint`` as :func:`choose_viewpoint` takes it."""
+    centre = choose_viewpoint(q, cfg, rng, viewpoint)
     profile = surface_profile(q, centre, cfg)
     notches = find_notches(profile, cfg)
     cands = []
@@ -418,7 +419,7 @@ def find_gaps(q, cfg, rng=None, external=None, viewpoint=None):
                                       spread),
                       left, right])
     cands = _suppress_overlaps(cands, len(profile.angles))
-    cands = _fuse_external(cands, external, profile, cfg)
+    cands = fuse_external(cands, external, profile, cfg)
     cands.sort(key=lambda c: -c[1])
     cands = cands[:cfg.gap_max_exits]
     outline = outline_from_profile(profile, notches, cfg)
@@ -485,8 +486,9 @@ def _jamb_wall_points(q, profile, cand, cfg):
     return q[mask & near]
 
 
-def _fuse_external(cands, external, profile, cfg):
-    """Step 4: merge door gaps from the feature extractor into the candidates."""
+def fuse_external(cands, external, profile, cfg):
+    """Step 4: merge door gaps from the feature extractor into the candidates, a list of
+    ``[centre, confidence, left bin, right bin]`` (the bins of an external gap of its own)."""
     if external is None or not len(external):
         return cands
     n = len(profile.angles)

@@ -34,7 +34,7 @@ _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
 
 def _config_from_params():
     cfg = ExitFinderConfig()
-    read_fields(cfg, ("min_points", "gap_max_exits", "seed"))
+    read_fields(cfg, ("min_points", "gap_max_exits", "seed", "rank_model", "rank_min_probability"))
     return cfg.validate()
 
 

@@ -6,4 +6,5 @@ setup(**generate_distutils_setup(
               "sparse_nav.tools", "sparse_nav.conductor", "sparse_nav.navigation",
               "sparse_nav.cartographer", "sparse_nav.motion"],
     package_dir={"": "src"},
+    package_data={"sparse_nav.exit_finder": ["door_ranker.json"]},
 ))

@@ -34,7 +34,7 @@ def test_json_output_is_exactly_the_documented_form(room_file, capsys):
     assert list(best) == ["x", "y", "score"]
     # x and z of the ORB-SLAM file, in its units.
     assert np.hypot(best["x"] - door[0], best["y"] - door[1]) < 0.3
-    assert data["method"] == "gaps"
+    assert data["method"] == "ranked"
 
 
 def test_text_output_plot_and_method(room_file, capsys, tmp_path):

@@ -23,7 +23,7 @@ ROOM2 = to_orbslam(room_cloud(RECT, [Door(side=0, at_m=2.0), Door(side=1, at_m=2
 
 
 def test_methods_and_default():
-    assert DEFAULT_METHOD in METHODS and "gaps" in METHODS and "seed" in METHODS
+    assert DEFAULT_METHOD == "ranked" and {"gaps", "seed", "auto"} <= set(METHODS)
     with pytest.raises(ValueError, match="unknown method"):
         find_exit(ROOM, method="magic")
 

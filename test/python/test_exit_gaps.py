@@ -105,14 +105,14 @@ def test_origin_viewpoint_falls_back_outside_the_cloud():
     assert result.exits
 
 
-def test_auto_uses_gaps_when_confident_and_the_seed_otherwise():
+def test_auto_uses_ranked_when_confident_and_the_seed_otherwise():
     xy, doors = room_cloud(RECT, [Door(side=0, at_m=2.0)], viewpoint=(0.3, 0.2), seed=7)
     result = find_exit(xy, method="auto", up_axis=None)
-    assert result.method == "auto:gaps" and near(result.exits[0], doors[0], 0.3)
+    assert result.method == "auto:ranked" and near(result.exits[0], doors[0], 0.3)
     strict = ExitFinderConfig(auto_min_confidence=1.0)
     fallback = find_exit(xy, method="auto", up_axis=None, config=strict)
-    assert fallback.method in ("auto:seed", "auto:concave_vertex", "auto:gaps")
-    assert fallback.method != "auto:gaps" or fallback.exits[0][2] < 1.0
+    assert fallback.method in ("auto:seed", "auto:concave_vertex", "auto:ranked")
+    assert fallback.method != "auto:ranked" or all(e[2] < 1.0 for e in fallback.exits)
 
 
 def test_door_centre_follows_the_points_seen_through_the_opening():

@@ -61,6 +61,13 @@ def test_both_doors_of_an_l_shaped_room_are_ranked_first():
         assert any(near(e, door, 0.3) for e in result.exits[:2])
 
 
+def test_a_closed_room_has_no_exit():
+    for seed in range(3):
+        xy, _ = room_cloud(RECT, [], viewpoint=VIEW, clutter=150, seed=seed)
+        result = find_exit(xy, method="ranked", up_axis=None, viewpoint=VIEW)
+        assert result.status == "no_exit" and not result.exits and result.reason
+
+
 def test_min_probability_cuts_the_list_down_to_no_exit():
     xy, _ = room_cloud(RECT, [Door(side=0, at_m=2.0)], viewpoint=VIEW, seed=4)
     result = find_exit(xy, method="ranked", up_axis=None, viewpoint=VIEW,

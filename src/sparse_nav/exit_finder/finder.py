@@ -9,16 +9,21 @@ Methods (``METHODS``):
 * ``farthest_corner``: seed alternative, the seed room's corner farthest from the cloud centre.
 * ``concave_vertex``: seed alternative, the deepest reflex vertex of the cloud's alpha outline.
 * ``gaps``: door gaps anywhere on a room outline of any number of sides, confirmed by the points
-  seen through them, ranked with a confidence, fused with the feature extractor's door gaps when
-  given; see :mod:`.gaps`. When the given viewpoint shows no exit it looks once more from the
-  viewpoint the cloud suggests (a camera that moved while mapping saw the door from elsewhere).
-  The default: it wins the simulator benchmark (bench/bench_exit_finder.py: 76.8 % of the
-  400 rooms with a door visible from the start; 72.0 % of the 200 its defaults were not tuned
-  on), and it answers "no exit" rather than fall back to a guess.
-* ``auto``: per cloud, ``gaps`` when it finds an opening with confidence >=
+  seen through them, ranked with a hand-made confidence, fused with the feature extractor's door
+  gaps when given; see :mod:`.gaps`. When the given viewpoint shows no exit it looks once more
+  from the viewpoint the cloud suggests (a camera that moved while mapping saw the door from
+  elsewhere). 78.7 % of the benchmark's door-visible rooms (75.0 % of those its defaults were
+  not tuned on).
+* ``ranked``: the candidates of several door detectors (the notches of ``gaps`` at three
+  bearing resolutions, gaps in straight walls) described by scale-free features and ranked by
+  the probability a learned model gives them (:mod:`.doors`, :mod:`.ranker`); the same
+  viewpoint fallback and door gap fusion as ``gaps``; candidates the model rates below
+  ``rank_min_probability`` are not reported, so a closed room gives "no exit". The default: it
+  wins the simulator benchmark (bench/bench_exit_finder.py), whose rooms it was not trained on.
+* ``auto``: per cloud, ``ranked`` when its best exit has a probability >=
   ``auto_min_confidence``, else the seed's corner when the seed finds a room with an empty
   corner, else the deepest concave vertex; the result's method names the choice
-  (``auto:gaps``).
+  (``auto:ranked``).
 
 Every method first runs seed steps 1-3 (:func:`prepare`): drop the vertical axis, drop non-finite
 rows, normalise to cloud radii, round to ``round_decimals`` and de-duplicate, IPCL.
@@ -41,7 +46,7 @@ from sparse_nav.exit_finder.result import (STATUS_NO_EXIT, STATUS_OK, ExitFinder
 
 METHODS = ("seed", "seed_count", "seed_extent", "dbscan", "farthest_corner", "concave_vertex",
            "gaps", "ranked", "auto")
-DEFAULT_METHOD = "gaps"
+DEFAULT_METHOD = "ranked"
 
 
 @dataclasses.dataclass
@@ -205,16 +210,16 @@ def _ranked(prep, cfg, rng, door_gaps, viewpoint=None):
 
 
 def _auto(prep, cfg, rng, door_gaps, viewpoint=None):
-    """Per cloud: ``gaps`` when it finds an opening with confidence >= auto_min_confidence;
-    else the seed's corner when the seed finds a four-sided room with an empty corner; else the
-    deepest concave vertex of the outline; else the best ``gaps`` had (even if weak)."""
+    """Per cloud: ``ranked`` when its best exit has probability >= auto_min_confidence; else the
+    seed's corner when the seed finds a four-sided room with an empty corner; else the deepest
+    concave vertex of the outline; else what ``ranked`` had (no exit)."""
     error = None
     try:
-        answer = _gaps(prep, cfg, rng, door_gaps, viewpoint)
+        answer = _ranked(prep, cfg, rng, door_gaps, viewpoint)
     except ExitFinderError as exc:
         answer, error = None, exc
     if answer is not None and answer.exits and answer.exits[0][2] >= cfg.auto_min_confidence:
-        return "gaps", answer
+        return "ranked", answer
     for name in ("seed", "concave_vertex"):
         try:
             if name == "seed":
@@ -227,7 +232,7 @@ def _auto(prep, cfg, rng, door_gaps, viewpoint=None):
             return name, other
     if answer is None:
         raise error
-    return "gaps", answer
+    return "ranked", answer
 
 
 def find_exit(points, method=DEFAULT_METHOD, config=None, up_axis="-y", seed=None,

@@ -16,7 +16,9 @@ A candidate is a segment ``a``-``b`` across the opening and a centre on it. :fun
 describes it by what is seen through it, its width and range against the room's, how straight
 the walls on both sides run past it, and what stands in front of it or behind its jambs, all
 in cloud radii, ratios or angles, so that the description does not depend on the monocular
-map's scale, position or heading.
+map's scale, position or heading; counts of points are divided by the *wall density*, the median
+number of points on the surface per degree of bearing, so that it does not depend on how many
+points the map holds either.
 """
 import dataclasses
 import warnings
@@ -41,7 +43,7 @@ WIDE_BEARINGS = (5, 15)         # half-windows (bearings) of the walls' median r
 SOURCES = tuple(p[0] for p in NOTCH_PROFILES) + ("wall_gap",)
 
 FEATURE_NAMES = (
-    "through_log",          # log(1 + points seen through the opening)
+    "through_log",          # log(1 + points seen through the opening / wall density)
     "through_coverage",     # share of its 1-degree bearings with a surface seen through them
     "through_spread",       # 10-90 % depth spread of those points over the door's range
     "width_log",            # log(width / gap_door_width)
@@ -58,8 +60,8 @@ FEATURE_NAMES = (
     "occluded_right",       # end), not a frame in a wall
     "in_front_share",       # share of the points in the opening's bearings in front of it
     "through_range_log",    # log(median range seen through / median wall range)
-    "through_density_log",  # log(1 + points seen through per 1-degree bearing)
-    "in_cone_log",          # log(1 + points in the opening's bearings)
+    "through_density_log",  # log(1 + points seen through per 1-degree bearing / wall density)
+    "in_cone_log",          # log(1 + points in the opening's bearings / wall density)
     "range_vs_walls_5",     # log(door range / median wall range within 5 bearings)
     "range_vs_walls_15",    # ... within 15 bearings
 ) + tuple(f"source_{s}" for s in SOURCES) + (
@@ -87,9 +89,10 @@ def notch_config(cfg, profile_index):
 
 
 class Scene:
-    """The cloud seen from the viewpoint: the polar coordinates of every point and the walls'
+    """The cloud seen from the viewpoint: the polar coordinates of every point, the walls'
     surface profile (:func:`~sparse_nav.exit_finder.gaps.surface_profile` at the first
-    detector's bearings, :func:`notch_config`), computed once for every candidate."""
+    detector's bearings, :func:`notch_config`), the median wall range around each bearing and
+    the wall density (points on the surface per degree), computed once for every candidate."""
 
     def __init__(self, q, viewpoint, cfg):
         self.q = q
@@ -107,6 +110,11 @@ class Scene:
         ranges = self.profile.ranges
         self.median_range = float(np.nanmedian(ranges)) if np.any(np.isfinite(ranges)) else 1.0
         n = len(ranges)
+        # Points on the surface per degree, the median over the bearings that have one.
+        per_bearing = np.bincount(self.profile.bearing[self.on_surface], minlength=n)
+        known = np.isfinite(ranges)
+        median = float(np.median(per_bearing[known])) if np.any(known) else 1.0
+        self.wall_density = max(median * n / 360.0, 1e-3)
         self.wall_range = {}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)   # all-NaN windows stay NaN
@@ -254,11 +262,13 @@ def features(scene, door):
         wall = scene.wall_range[half][centre_bin]
         vs_walls.append(float(np.log(door_range / wall)) if np.isfinite(wall) else 0.0)
     source = [float(door.source == s) for s in SOURCES]
-    return np.array([np.log1p(n_through), coverage, spread, width_log, width_log ** 2,
+    density = scene.wall_density
+    return np.array([np.log1p(n_through / density), coverage, spread, width_log, width_log ** 2,
                      np.log(door_range / scene.median_range), span / (2 * np.pi), depth, beyond,
                      incidence, jamb_angle, jamb_offset, jamb_scatter, occluded_left,
                      occluded_right, np.count_nonzero(in_front) / max(n_cone, 1), through_range,
-                     np.log1p(n_through / n_bins), np.log1p(n_cone)] + vs_walls + source,
+                     np.log1p(n_through / n_bins / density), np.log1p(n_cone / density)] +
+                    vs_walls + source,
                     dtype=float)
 
 

@@ -104,7 +104,7 @@ def test_features_are_finite_named_and_independent_of_scale_heading_and_position
     prep2, scene2 = scene_of(move(xy), move(VIEW))
     door = cands[0]
     metres = [prep.frame.from_norm(p[None])[0] for p in (door.a, door.b, door.centre)]
-    moved = doorslib.Door(*[prep2.frame.to_norm(move(p)[None])[0] for p in metres],
+    moved = doorslib.Candidate(*[prep2.frame.to_norm(move(p)[None])[0] for p in metres],
                           source=door.source)
     f1, f2 = doorslib.features(scene, door), doorslib.features(scene2, moved)
     np.testing.assert_allclose(f1, f2, atol=0.05)

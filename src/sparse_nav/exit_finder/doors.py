@@ -70,7 +70,7 @@ FEATURE_NAMES = (
 
 
 @dataclasses.dataclass
-class Door:
+class Candidate:
     """A door candidate: the segment a-b across the opening and its centre (r.u.); a notch also
     keeps its jamb bearings (left, right) in its detector's profile."""
 
@@ -147,7 +147,7 @@ def notches(q, profile, cfg, source):
     out = []
     for left, right in gapslib.find_notches(profile, cfg):
         through = gapslib.through_mask(profile, left, right, cfg)
-        out.append(Door(a=profile.point(left), b=profile.point(right),
+        out.append(Candidate(a=profile.point(left), b=profile.point(right),
                         centre=gapslib.door_centre(profile, q, left, right, through, cfg),
                         source=source, jambs=(left, right)))
     return out
@@ -177,7 +177,7 @@ def wall_gaps(scene, rng):
                     np.count_nonzero((t >= hi) & (t <= hi + WALL_SIDE)) < WALL_SIDE_POINTS:
                 continue
             a, b = line.at(lo), line.at(hi)
-            out.append(Door(a=a, b=b, centre=0.5 * (a + b), source="wall_gap"))
+            out.append(Candidate(a=a, b=b, centre=0.5 * (a + b), source="wall_gap"))
     return out
 
 

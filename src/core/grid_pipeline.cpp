@@ -86,9 +86,9 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       p *= s;
     }
     timer.lap("guard");
-    const PointList& voxels = voxel_.apply(points);
-    r.n_changed_points = voxel_.numChanged();
     r.voxel.n_in = points.size();
+    const PointList& voxels = voxel_.apply(std::move(points));
+    r.n_changed_points = voxel_.numChanged();
     r.voxel.n_out = voxels.size();
     timer.lap("voxel");
     if (voxels.empty())

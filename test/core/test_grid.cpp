@@ -233,6 +233,32 @@ TEST(AlphaShape, SameEdgesAsCgalAlphaShape2)
   }
 }
 
+TEST(AlphaShape, RingsDoNotDependOnTheOrderOfThePoints)
+{
+  // Grid points are full of cocircular quadruples, whose triangulation, and the order in which it
+  // lists its edges, change with the order of insertion (and with the heap): the rings must not.
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> coord(0, 60);
+  std::set<std::pair<int, int>> cells;
+  while (cells.size() < 900)
+  {
+    const int x = coord(rng), y = coord(rng);
+    cells.emplace(x, y % 12 == 0 ? y : (x % 10 == 0 ? y : y / 3 * 3));
+  }
+  PointList2D points;
+  for (const auto& c : cells)
+  {
+    points.emplace_back(c.first, c.second);
+  }
+  const auto first = sparse_nav::computeAlphaShape(points, 1.5);
+  ASSERT_GT(first.rings.size(), 1u);
+  for (int trial = 0; trial < 5; ++trial)
+  {
+    std::shuffle(points.begin(), points.end(), rng);
+    EXPECT_TRUE(sparse_nav::computeAlphaShape(points, 1.5).rings == first.rings) << "shuffle " << trial;
+  }
+}
+
 TEST(Rasterisation, KnownSquareCells)
 {
   // Outline of a 21 x 21-cell square every 2 cells.

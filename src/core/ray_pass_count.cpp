@@ -237,55 +237,78 @@ RayPassCount::IndexedRay RayPassCount::indexed(const PassRay& ray) const
 {
   const Eigen::Vector2i b = cellOf(ray.end_xy);
   const Eigen::Vector2i d = b - camera_cell_[ray.camera];
-  return IndexedRay{ angleKey(pseudoAngle(d.x(), d.y())), b.x(), b.y(), ray.end_h, false };
+  return IndexedRay{ ray.end_h, angleKey(pseudoAngle(d.x(), d.y())), b.x(), b.y(), false };
 }
 
-void RayPassCount::indexRays(const PassRaySource& rays)
+std::vector<RayPassCount::End> RayPassCount::sortedEnds(const PassRaySource& rays) const
 {
-  // Bucketed by direction in two passes (count, place): cheaper than sorting, and a window of
-  // directions is a run of buckets.
-  constexpr std::size_t kBuckets = std::size_t{ 1 } << (32 - kBucketShift);
-  index_.assign(camera_xy_.size(), CameraIndex());
-  std::vector<IndexedRay> entries;
-  std::vector<std::uint32_t> camera_of;
-  entries.reserve(rays.size);
-  camera_of.reserve(rays.size);
-  for (auto& ci : index_)
-  {
-    ci.start.assign(kBuckets + 1, 0);
-  }
+  std::vector<End> ends;
+  ends.reserve(rays.size);
   for (std::size_t i = 0; i < rays.size; ++i)
   {
     const PassRay r = rays.at(i);
     if (counts(r))
     {
-      const IndexedRay e = indexed(r);
-      if (!inCameraCell(r.camera, e))
-      {
-        entries.push_back(e);
-        camera_of.push_back(r.camera);
-        ++index_[r.camera].start[(e.key >> kBucketShift) + 1];
-      }
+      const Eigen::Vector2i e = cellOf(r.end_xy) + Eigen::Vector2i::Constant(kCellOffset);
+      ends.push_back(End{ r.camera, static_cast<std::uint64_t>(e.x()) << 32 | static_cast<std::uint32_t>(e.y()), r.end_h });
     }
   }
+  radixSortBy(ends, [](const End& e) { return e.camera; });
+  radixSortBy(ends, [](const End& e) { return e.cell; });
+  return ends;
+}
+
+Eigen::Vector2i RayPassCount::endCell(const End& e)
+{
+  return Eigen::Vector2i(static_cast<int>(e.cell >> 32) - kCellOffset, static_cast<int>(e.cell & 0xffffffffu) - kCellOffset);
+}
+
+void RayPassCount::indexRays(const std::vector<End>& ends)
+{
+  // Bucketed by direction in two passes (count, place): cheaper than sorting, and a window of
+  // directions is a run of buckets. A run of ends shares its direction, taken once.
+  constexpr std::size_t kBuckets = std::size_t{ 1 } << (32 - kBucketShift);
+  auto forEachRun = [&](auto visit) {
+    for (std::size_t g0 = 0, g1 = 0; g0 < ends.size(); g0 = g1)
+    {
+      for (g1 = g0 + 1; g1 < ends.size() && ends[g1].camera == ends[g0].camera && ends[g1].cell == ends[g0].cell; ++g1)
+      {
+      }
+      const std::size_t camera = static_cast<std::size_t>(ends[g0].camera);
+      const Eigen::Vector2i b = endCell(ends[g0]);
+      const Eigen::Vector2i d = b - camera_cell_[camera];
+      if (d.x() != 0 || d.y() != 0)  // a ray that ends in its camera's cell passes nothing and is not indexed
+      {
+        visit(index_[camera], angleKey(pseudoAngle(d.x(), d.y())), b, g0, g1);
+      }
+    }
+  };
+  index_.assign(camera_xy_.size(), CameraIndex());
   for (auto& ci : index_)
   {
+    ci.start.assign(kBuckets + 1, 0);
+  }
+  forEachRun([](CameraIndex& ci, std::uint32_t key, const Eigen::Vector2i&, std::size_t g0, std::size_t g1) {
+    ci.start[(key >> kBucketShift) + 1] += static_cast<std::uint32_t>(g1 - g0);
+  });
+  std::vector<std::vector<std::uint32_t>> fill(index_.size());
+  for (std::size_t c = 0; c < index_.size(); ++c)
+  {
+    CameraIndex& ci = index_[c];
     for (std::size_t b = 1; b <= kBuckets; ++b)
     {
       ci.start[b] += ci.start[b - 1];
     }
     ci.rays.resize(ci.start[kBuckets]);
+    fill[c].assign(ci.start.begin(), ci.start.end() - 1);
   }
-  std::vector<std::vector<std::uint32_t>> fill(index_.size());
-  for (std::size_t c = 0; c < index_.size(); ++c)
-  {
-    fill[c].assign(index_[c].start.begin(), index_[c].start.end() - 1);
-  }
-  for (std::size_t i = 0; i < entries.size(); ++i)
-  {
-    CameraIndex& ci = index_[camera_of[i]];
-    ci.rays[fill[camera_of[i]][entries[i].key >> kBucketShift]++] = entries[i];
-  }
+  forEachRun([&](CameraIndex& ci, std::uint32_t key, const Eigen::Vector2i& b, std::size_t g0, std::size_t g1) {
+    std::uint32_t& at = fill[static_cast<std::size_t>(&ci - index_.data())][key >> kBucketShift];
+    for (std::size_t g = g0; g < g1; ++g)
+    {
+      ci.rays[at++] = IndexedRay{ ends[g].h, key, b.x(), b.y(), false };
+    }
+  });
 }
 
 bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const std::vector<double>& camera_h,
@@ -354,25 +377,7 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
   // Rays from one camera to one end cell share their cells and differ only in height: walked once
   // as a group, whose heights sorted give the count at a cell by two binary searches (a wall's
   // cell holds points at many heights).
-  struct End
-  {
-    std::uint64_t camera, cell;
-    double h;
-  };
-  constexpr int kCellOffset = 1 << 27;
-  std::vector<End> ends;
-  ends.reserve(rays.size);
-  for (std::size_t i = 0; i < rays.size; ++i)
-  {
-    const PassRay r = rays.at(i);
-    if (counts(r))
-    {
-      const Eigen::Vector2i e = cellOf(r.end_xy) + Eigen::Vector2i::Constant(kCellOffset);
-      ends.push_back(End{ r.camera, static_cast<std::uint64_t>(e.x()) << 32 | static_cast<std::uint32_t>(e.y()), r.end_h });
-    }
-  }
-  radixSortBy(ends, [](const End& e) { return e.camera; });
-  radixSortBy(ends, [](const End& e) { return e.cell; });
+  const std::vector<End> ends = sortedEnds(rays);
   std::vector<double> heights;
   for (std::size_t g0 = 0, g1 = 0; g0 < ends.size(); g0 = g1)
   {
@@ -382,11 +387,9 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
       heights.push_back(ends[g1].h);
     }
     std::sort(heights.begin(), heights.end());
-    const Eigen::Vector2i b(static_cast<int>(ends[g0].cell >> 32) - kCellOffset,
-                            static_cast<int>(ends[g0].cell & 0xffffffffu) - kCellOffset);
-    walk(ends[g0].camera, b, heights, +1);
+    walk(ends[g0].camera, endCell(ends[g0]), heights, +1);
   }
-  indexRays(rays);
+  indexRays(ends);
   counted_ = true;
   return true;
 }
@@ -551,7 +554,7 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
   // skipped: once they are a quarter of it, the index is made again.
   if (4 * n_stale > n_indexed)
   {
-    indexRays(rays);
+    indexRays(sortedEnds(rays));
   }
   return true;
 }

@@ -95,11 +95,18 @@ public:
 private:
   struct IndexedRay
   {
+    double h;
     std::uint32_t key;  // pseudo-angle of the ray's direction, quantised
     std::int32_t bx, by;  // end cell
-    double h;
     bool deleted;
   };
+  /// A counted ray: camera, end cell (each coordinate offset by kCellOffset, x above y) and end height.
+  struct End
+  {
+    std::uint64_t camera, cell;
+    double h;
+  };
+  static constexpr int kCellOffset = 1 << 27;
   struct CameraIndex
   {
     std::vector<std::uint32_t> start;  // per direction bucket (key >> kBucketShift), its first ray
@@ -143,7 +150,12 @@ private:
   /// Whether the ray from camera cell a to end cell b visits cell k at a counted step; s is that step.
   bool visits(const Eigen::Vector2i& a, const Eigen::Vector2i& b, const Eigen::Vector2i& k, int& s) const;
   std::uint32_t recount(const Eigen::Vector2i& k) const;
-  void indexRays(const PassRaySource& rays);
+  /// The ends of the counted rays, sorted by camera and end cell: the rays from one camera to one
+  /// cell, which share their cells and differ only in height, are a run.
+  std::vector<End> sortedEnds(const PassRaySource& rays) const;
+  static Eigen::Vector2i endCell(const End& e);
+  /// Makes the index from sortedEnds().
+  void indexRays(const std::vector<End>& ends);
   IndexedRay indexed(const PassRay& ray) const;
 
   RayPassConfig config_;

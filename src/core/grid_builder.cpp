@@ -6,6 +6,7 @@
 #include <iterator>
 #include <stdexcept>
 #include <tuple>
+#include <utility>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -205,7 +206,7 @@ void GridBuilder::reset()
   last_shape_ = AlphaShapeResult();
 }
 
-GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<FreeRay>& rays)
+GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay> rays)
 {
   GridUpdate result;
   const double res = config_.resolution_m;
@@ -233,6 +234,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
       new_rays.push_back(converted);
     }
   }
+  std::vector<FreeRay>().swap(rays);  // done with: its pages serve the arrays below
   std::vector<std::uint32_t> new_counts;
   sortUnique(new_rays, new_counts);
   result.n_obstacle_cells = cells.size();
@@ -438,11 +440,11 @@ bool GridBuilder::toRay(const FreeRay& r, Ray& out) const
   return true;
 }
 
-GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<FreeRay>& rays, const GridChange& change)
+GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay> rays, const GridChange& change)
 {
   if (grid_.empty() || obstacle_count_.size() != grid_.data.size())
   {
-    return update(obstacles, rays);
+    return update(obstacles, std::move(rays));
   }
   const double res = config_.resolution_m;
   const int tile = config_.tile_size_cells;
@@ -468,7 +470,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     {
       if (!fits(ray.x0, ray.y0) || !fits(ray.x1, ray.y1))
       {
-        return update(obstacles, rays);
+        return update(obstacles, std::move(rays));
       }
       rays_added.push_back(ray);
     }
@@ -478,7 +480,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   {
     if (toCell(p, x, y) && !fits(x, y))
     {
-      return update(obstacles, rays);
+      return update(obstacles, std::move(rays));
     }
   }
 
@@ -583,7 +585,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   {
     // The change does not follow from what this builder holds: start from the lists.
     reset();
-    return update(obstacles, rays);
+    return update(obstacles, std::move(rays));
   }
   // Rays whose copies are all gone leave the list, new ones join it: one merge.
   if (n_emptied > 0 || !inserted.empty())

@@ -144,11 +144,11 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       change.obstacles_added = std::move(g.obstacles_added_xy);
       change.rays_removed = std::move(g.rays_removed);
       change.rays_added = std::move(g.rays_added);
-      r.grid = builder_.update(obstacles, g.rays, change);
+      r.grid = builder_.update(obstacles, std::move(g.rays), change);
     }
     else
     {
-      r.grid = builder_.update(obstacles, g.rays);
+      r.grid = builder_.update(obstacles, std::move(g.rays));
     }
     builder_saw_last_ground_ = r.grid.ok;
     timer.lap("grid");

@@ -11,6 +11,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "radix_sort.h"
 
 namespace sparse_nav
@@ -46,6 +50,123 @@ void bresenham(int x0, int y0, int x1, int y1, Visit visit)
     err += (step_x ? dy : 0) + (step_y ? dx : 0);
     x0 += step_x ? sx : 0;
     y0 += step_y ? sy : 0;
+  }
+}
+
+/// bresenham()'s walk as a cursor over the cells' indices row * width + col in a grid.
+struct LineCursor
+{
+  int dx, dy, sx, sy, err, index, left;  // sy steps a row: +-width
+
+  LineCursor(int x0, int y0, int x1, int y1, int width)
+    : dx(std::abs(x1 - x0))
+    , dy(-std::abs(y1 - y0))
+    , sx(x0 < x1 ? 1 : -1)
+    , sy(y0 < y1 ? width : -width)
+    , err(dx + dy)
+    , index(y0 * width + x0)
+    , left(std::max(dx, -dy))
+  {
+  }
+  void step()
+  {
+    const int e2 = 2 * err;
+    const bool step_x = e2 >= dy;
+    const bool step_y = e2 <= dx;
+    err += (step_x ? dy : 0) + (step_y ? dx : 0);
+    index += (step_x ? sx : 0) + (step_y ? sy : 0);
+    --left;
+  }
+};
+
+/// Adds 1 to cover[i] for the index i of each cell of each of n lines (line(k) gives the k-th
+/// LineCursor). A line's steps wait each on the last (its error term), so one line at a time
+/// leaves the core idle most of each step: with SSE2 four lines step at once, one per lane, and
+/// each step's four cells are counted in turn; the last lines finish one at a time.
+template <typename Line>
+void coverLines(std::size_t n, Line line, std::uint32_t* cover)
+{
+  std::size_t next = 0;
+#if defined(__SSE2__)
+  if (n >= 4)
+  {
+    LineCursor lanes[4] = { line(0), line(1), line(2), line(3) };
+    next = 4;
+    alignas(16) int err[4], index[4], dx[4], dy[4], sx[4], sy[4];
+    while (true)
+    {
+      int steps = lanes[0].left;
+      for (int l = 0; l < 4; ++l)
+      {
+        err[l] = lanes[l].err;
+        index[l] = lanes[l].index;
+        dx[l] = lanes[l].dx;
+        dy[l] = lanes[l].dy;
+        sx[l] = lanes[l].sx;
+        sy[l] = lanes[l].sy;
+        steps = std::min(steps, lanes[l].left);
+      }
+      // Every lane takes steps + 1 cells: the one it is at and steps more.
+      __m128i e = _mm_load_si128(reinterpret_cast<const __m128i*>(err));
+      __m128i at = _mm_load_si128(reinterpret_cast<const __m128i*>(index));
+      const __m128i vdx = _mm_load_si128(reinterpret_cast<const __m128i*>(dx));
+      const __m128i vdy = _mm_load_si128(reinterpret_cast<const __m128i*>(dy));
+      const __m128i vsx = _mm_load_si128(reinterpret_cast<const __m128i*>(sx));
+      const __m128i vsy = _mm_load_si128(reinterpret_cast<const __m128i*>(sy));
+      for (int s = 0; s <= steps; ++s)
+      {
+        alignas(16) int cells[4];
+        _mm_store_si128(reinterpret_cast<__m128i*>(cells), at);
+        ++cover[cells[0]];
+        ++cover[cells[1]];
+        ++cover[cells[2]];
+        ++cover[cells[3]];
+        const __m128i e2 = _mm_add_epi32(e, e);
+        const __m128i step_x = _mm_xor_si128(_mm_cmpgt_epi32(vdy, e2), _mm_set1_epi32(-1));  // e2 >= dy
+        const __m128i step_y = _mm_xor_si128(_mm_cmpgt_epi32(e2, vdx), _mm_set1_epi32(-1));  // e2 <= dx
+        e = _mm_add_epi32(e, _mm_add_epi32(_mm_and_si128(step_x, vdy), _mm_and_si128(step_y, vdx)));
+        at = _mm_add_epi32(at, _mm_add_epi32(_mm_and_si128(step_x, vsx), _mm_and_si128(step_y, vsy)));
+      }
+      _mm_store_si128(reinterpret_cast<__m128i*>(err), e);
+      _mm_store_si128(reinterpret_cast<__m128i*>(index), at);
+      bool refilled = true;
+      for (int l = 0; l < 4; ++l)
+      {
+        lanes[l].err = err[l];
+        lanes[l].index = index[l];
+        lanes[l].left -= steps + 1;
+        if (lanes[l].left < 0)
+        {
+          if (next == n)
+          {
+            refilled = false;
+          }
+          else
+          {
+            lanes[l] = line(next++);
+          }
+        }
+      }
+      if (!refilled)
+      {
+        for (LineCursor& rest : lanes)
+        {
+          for (; rest.left >= 0; rest.step())
+          {
+            ++cover[rest.index];
+          }
+        }
+        return;
+      }
+    }
+  }
+#endif
+  for (; next < n; ++next)
+  {
+    for (LineCursor c = line(next); c.left >= 0; c.step())
+    {
+      ++cover[c.index];
+    }
   }
 }
 
@@ -363,10 +484,14 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay
   {
     std::fill(write.begin(), write.end(), 1);
     ray_cover_.assign(grid_.data.size(), 0);
-    for (const auto& r : new_rays)
-    {
-      walkRay(r, [&](int col, int row) { ++ray_cover_[static_cast<std::size_t>(row) * grid_.width + col]; });
-    }
+    coverLines(
+        new_rays.size(),
+        [&](std::size_t k) {
+          const Ray& r = new_rays[k];
+          return LineCursor(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
+                            static_cast<int>(r.y1 - cell0_y_), grid_.width);
+        },
+        ray_cover_.data());
   }
   else
   {

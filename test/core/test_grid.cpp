@@ -558,6 +558,38 @@ TEST(RadixSort, AgreesWithStdSort)
   }
 }
 
+TEST(GridBuilder, AFullBuildCoversTheCellsOfEachRayAsAWalkOfItAloneDoes)
+{
+  // A full build walks its rays four at a time; an update walks the rays it is given one by one.
+  // Built from all the rays at once, or from three and then the rest as a change, the grid is the
+  // same: rays of every length and direction, from one camera and from others, repeated, and ones
+  // that end in their start cell.
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> u(0.0, 6.0);
+  PointList2D obstacles;
+  std::vector<FreeRay> rays;
+  const std::vector<Eigen::Vector2d> cameras{ { 3.0, 3.0 }, { 0.7, 5.1 }, { 5.3, 0.4 } };
+  for (int i = 0; i < 997; ++i)
+  {
+    const Eigen::Vector2d end(u(rng), u(rng));
+    const Eigen::Vector2d& from = cameras[static_cast<std::size_t>(i) % cameras.size()];
+    obstacles.push_back(end);
+    rays.push_back(FreeRay{ from, i % 50 == 0 ? from + Eigen::Vector2d(0.01, 0.01) : end });
+  }
+  obstacles.insert(obstacles.end(), cameras.begin(), cameras.end());
+  GridBuilder all_at_once, three_then_rest;
+  all_at_once.update(obstacles, rays);
+  sparse_nav::GridChange rest;
+  rest.rays_added.assign(rays.begin() + 3, rays.end());
+  three_then_rest.update(obstacles, std::vector<FreeRay>(rays.begin(), rays.begin() + 3));
+  const GridUpdate updated = three_then_rest.update(obstacles, rays, rest);
+  ASSERT_TRUE(updated.ok);
+  EXPECT_FALSE(updated.full_rebuild);
+  ASSERT_EQ(three_then_rest.grid().data.size(), all_at_once.grid().data.size());
+  EXPECT_TRUE(three_then_rest.grid().data == all_at_once.grid().data);
+  EXPECT_GT(all_at_once.grid().count(OccupancyGrid::kFree), 1000u);
+}
+
 TEST(GridBuilder, AnUpdateByTheChangeGivesTheGridOfTheWholeLists)
 {
   // A room's walls and rays to them from a camera, with repeated points and rays; each round some

@@ -565,11 +565,12 @@ bool GridBuilder::toRay(const FreeRay& r, Ray& out) const
   return true;
 }
 
-GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay> rays, const GridChange& change)
+GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::function<std::vector<FreeRay>()>& rays,
+                               const GridChange& change)
 {
   if (grid_.empty() || obstacle_count_.size() != grid_.data.size())
   {
-    return update(obstacles, std::move(rays));
+    return update(obstacles, rays());
   }
   const double res = config_.resolution_m;
   const int tile = config_.tile_size_cells;
@@ -595,7 +596,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay
     {
       if (!fits(ray.x0, ray.y0) || !fits(ray.x1, ray.y1))
       {
-        return update(obstacles, std::move(rays));
+        return update(obstacles, rays());
       }
       rays_added.push_back(ray);
     }
@@ -605,7 +606,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay
   {
     if (toCell(p, x, y) && !fits(x, y))
     {
-      return update(obstacles, std::move(rays));
+      return update(obstacles, rays());
     }
   }
 
@@ -710,7 +711,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay
   {
     // The change does not follow from what this builder holds: start from the lists.
     reset();
-    return update(obstacles, std::move(rays));
+    return update(obstacles, rays());
   }
   // Rays whose copies are all gone leave the list, new ones join it: one merge.
   if (n_emptied > 0 || !inserted.empty())

@@ -144,7 +144,7 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       change.obstacles_added = std::move(g.obstacles_added_xy);
       change.rays_removed = std::move(g.rays_removed);
       change.rays_added = std::move(g.rays_added);
-      r.grid = builder_.update(obstacles, std::move(g.rays), change);
+      r.grid = builder_.update(obstacles, [this] { return ground_.rays(); }, change);
     }
     else
     {

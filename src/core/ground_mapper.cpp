@@ -111,6 +111,26 @@ void GroundMapper::reset()
   }
 }
 
+std::vector<FreeRay> GroundMapper::rays() const
+{
+  std::vector<FreeRay> rays;
+  if (last_kind_.empty())
+  {
+    return rays;
+  }
+  rays.reserve(last_out_.size());
+  FreeRay ray;
+  for (std::size_t k = 0; k < last_out_.size(); ++k)
+  {
+    if (bandRay(last_cameras_out_[last_camera_[k]], last_camera_h_[last_camera_[k]], last_out_[k], last_h_[k],
+                config_.floor_clearance_m, config_.ceiling_height_m, ray))
+    {
+      rays.push_back(ray);
+    }
+  }
+  return rays;
+}
+
 GroundMapperResult GroundMapper::process(const PointList& input, const std::vector<Eigen::Vector3d>& cameras,
                                          const std::vector<std::int32_t>* previous_index)
 {
@@ -321,7 +341,10 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   candidates.clear();
   candidate_index.clear();
   r.obstacles.reserve(points.size());
-  r.rays.reserve(points.size());
+  if (!continues)
+  {
+    r.rays.reserve(points.size());
+  }
   FreeRay ray;
   for (std::size_t i = 0; i < points.size(); ++i)
   {
@@ -345,7 +368,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
         candidates.push_back(PassCandidate{ out[i].head<2>().cast<double>(), h });
         candidate_index.push_back(i);
     }
-    if (bandRay(r.cameras[nearest[i]], cam_height[nearest[i]], out[i], h, z_lo, z_hi, ray))
+    if (!continues && bandRay(r.cameras[nearest[i]], cam_height[nearest[i]], out[i], h, z_lo, z_hi, ray))
     {
       r.rays.push_back(ray);
     }
@@ -471,6 +494,8 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   // What the next call continues from.
   last_dense_of_input_.swap(dense_of_input_);
   last_cameras_ = cams_in;
+  last_cameras_out_ = r.cameras;
+  last_camera_h_ = cam_height;
   last_kind_.swap(kind_);
   last_obstacle_.swap(obstacle_);
   last_out_.swap(out_);

@@ -582,7 +582,7 @@ TEST(GridBuilder, AFullBuildCoversTheCellsOfEachRayAsAWalkOfItAloneDoes)
   sparse_nav::GridChange rest;
   rest.rays_added.assign(rays.begin() + 3, rays.end());
   three_then_rest.update(obstacles, std::vector<FreeRay>(rays.begin(), rays.begin() + 3));
-  const GridUpdate updated = three_then_rest.update(obstacles, rays, rest);
+  const GridUpdate updated = three_then_rest.update(obstacles, [&] { return rays; }, rest);
   ASSERT_TRUE(updated.ok);
   EXPECT_FALSE(updated.full_rebuild);
   ASSERT_EQ(three_then_rest.grid().data.size(), all_at_once.grid().data.size());
@@ -643,7 +643,7 @@ TEST(GridBuilder, AnUpdateByTheChangeGivesTheGridOfTheWholeLists)
         change.rays_added.push_back(rays[i]);
       }
     }
-    const GridUpdate a = incremental.update(obstacles, rays, change);
+    const GridUpdate a = incremental.update(obstacles, [&] { return rays; }, change);
     const GridUpdate b = whole.update(obstacles, rays);
     ASSERT_TRUE(a.ok) << a.status;
     EXPECT_FALSE(a.full_rebuild);
@@ -659,14 +659,14 @@ TEST(GridBuilder, AnUpdateByTheChangeGivesTheGridOfTheWholeLists)
   far.rays_added.push_back(FreeRay{ camera, Eigen::Vector2d(12.0, 2.0) });
   obstacles.push_back(far.obstacles_added.back());
   rays.push_back(far.rays_added.back());
-  const GridUpdate grown = incremental.update(obstacles, rays, far);
+  const GridUpdate grown = incremental.update(obstacles, [&] { return rays; }, far);
   EXPECT_TRUE(grown.full_rebuild);
   whole.update(obstacles, rays);
   EXPECT_TRUE(incremental.grid().data == whole.grid().data);
   // A change that removes what the builder never held starts again from the lists.
   sparse_nav::GridChange wrong;
   wrong.rays_removed.push_back(FreeRay{ Eigen::Vector2d(1.0, 1.0), Eigen::Vector2d(1.3, 1.1) });
-  const GridUpdate restarted = incremental.update(obstacles, rays, wrong);
+  const GridUpdate restarted = incremental.update(obstacles, [&] { return rays; }, wrong);
   EXPECT_TRUE(restarted.full_rebuild);
   EXPECT_TRUE(incremental.grid().data == whole.grid().data);
 }

@@ -159,7 +159,7 @@ private:
   PointList last_out_;
   std::vector<double> last_h_;
   // Scratch of process(), kept for its capacity.
-  PointList points_;
+  std::vector<std::uint32_t> kept_;
   PointList out_;
   std::vector<std::int32_t> dense_of_input_;
   std::vector<std::int32_t> dense_previous_;

@@ -206,12 +206,19 @@ void sortUnique(std::vector<GridBuilder::Ray>& rays, std::vector<std::uint32_t>&
     rays.resize(out);
     return;
   }
+  // Fields of only as many bits as the span needs: the sort passes over fewer digits.
+  int b = 1;
+  while (b < 16 && (hi - lo) >> b != 0)
+  {
+    ++b;
+  }
+  const std::uint64_t mask = (std::uint64_t{ 1 } << b) - 1;
   std::vector<std::uint64_t> keys;
   keys.reserve(rays.size());
   for (const auto& r : rays)
   {
-    keys.push_back(static_cast<std::uint64_t>(r.x0 - lo) << 48 | static_cast<std::uint64_t>(r.y0 - lo) << 32 |
-                   static_cast<std::uint64_t>(r.x1 - lo) << 16 | static_cast<std::uint64_t>(r.y1 - lo));
+    keys.push_back(static_cast<std::uint64_t>(r.x0 - lo) << (3 * b) | static_cast<std::uint64_t>(r.y0 - lo) << (2 * b) |
+                   static_cast<std::uint64_t>(r.x1 - lo) << b | static_cast<std::uint64_t>(r.y1 - lo));
   }
   radixSort(keys);
   rays.clear();
@@ -223,17 +230,18 @@ void sortUnique(std::vector<GridBuilder::Ray>& rays, std::vector<std::uint32_t>&
       continue;
     }
     const std::uint64_t k = keys[i];
-    rays.push_back(GridBuilder::Ray{ static_cast<std::int32_t>((k >> 48) + lo), static_cast<std::int32_t>(((k >> 32) & 0xffff) + lo),
-                                     static_cast<std::int32_t>(((k >> 16) & 0xffff) + lo), static_cast<std::int32_t>((k & 0xffff) + lo) });
+    rays.push_back(GridBuilder::Ray{ static_cast<std::int32_t>((k >> (3 * b)) + lo), static_cast<std::int32_t>(((k >> (2 * b)) & mask) + lo),
+                                     static_cast<std::int32_t>(((k >> b) & mask) + lo), static_cast<std::int32_t>((k & mask) + lo) });
     counts.push_back(1);
   }
 }
 
-/// Sorts (y, x) cells and drops repeats. update() keeps cell indices within +-(1e9 + 1), so the
+/// Sorts (y, x) cells and drops repeats, counting each cell's copies in counts. update() keeps cell indices within +-(1e9 + 1), so the
 /// offsets from the minima fit 32 bits each and one 64-bit key per cell, radix-sorted, orders them
 /// as the pairs do: std::sort of ~45k pairs took ~1.5 ms per full rebuild.
-void sortUniqueCells(std::vector<std::pair<std::int64_t, std::int64_t>>& cells)
+void sortUniqueCells(std::vector<std::pair<std::int64_t, std::int64_t>>& cells, std::vector<std::uint32_t>& counts)
 {
+  counts.clear();
   if (cells.empty())
   {
     return;
@@ -251,11 +259,16 @@ void sortUniqueCells(std::vector<std::pair<std::int64_t, std::int64_t>>& cells)
     keys.push_back(static_cast<std::uint64_t>(c.first - min_y) << 32 | static_cast<std::uint64_t>(c.second - min_x));
   }
   radixSort(keys);
-  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-  cells.resize(keys.size());
+  cells.clear();
   for (std::size_t i = 0; i < keys.size(); ++i)
   {
-    cells[i] = { static_cast<std::int64_t>(keys[i] >> 32) + min_y, static_cast<std::int64_t>(keys[i] & 0xffffffffu) + min_x };
+    if (i > 0 && keys[i] == keys[i - 1])
+    {
+      ++counts.back();
+      continue;
+    }
+    cells.emplace_back(static_cast<std::int64_t>(keys[i] >> 32) + min_y, static_cast<std::int64_t>(keys[i] & 0xffffffffu) + min_x);
+    counts.push_back(1);
   }
 }
 
@@ -343,7 +356,8 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay
       cells.emplace_back(cy, cx);
     }
   }
-  sortUniqueCells(cells);
+  std::vector<std::uint32_t> cell_counts;  // obstacle points per cell
+  sortUniqueCells(cells, cell_counts);
 
   std::vector<Ray> new_rays;
   new_rays.reserve(rays.size());
@@ -525,12 +539,10 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay
   ray_count_.swap(new_counts);
   // How many obstacle points each cell holds: what an update by a change counts down and up.
   obstacle_count_.assign(grid_.data.size(), 0);
-  for (const auto& p : obstacles)
+  for (std::size_t i = 0; i < cells.size(); ++i)
   {
-    if (toCell(p, cx, cy))
-    {
-      ++obstacle_count_[static_cast<std::size_t>(cy - cell0_y_) * grid_.width + static_cast<std::size_t>(cx - cell0_x_)];
-    }
+    obstacle_count_[static_cast<std::size_t>(cells[i].first - cell0_y_) * grid_.width +
+                    static_cast<std::size_t>(cells[i].second - cell0_x_)] = cell_counts[i];
   }
   return finish(write, full, result);
 }
@@ -809,7 +821,8 @@ GridUpdate GridBuilder::finish(const std::vector<std::uint8_t>& write, bool full
     wx1 = std::min(tiles_x_ - 1, wx1 + margin);
     wy1 = std::min(tiles_y_ - 1, wy1 + margin);
     const Window window{ wx0 * tile, wy0 * tile, (wx1 - wx0 + 1) * tile, (wy1 - wy0 + 1) * tile };
-    const std::vector<std::int8_t> before = grid_.data;
+    // A full rebuild changes every tile it writes: nothing to compare with.
+    const std::vector<std::int8_t> before = full ? std::vector<std::int8_t>() : grid_.data;
     recomputeWindow(window, write, alpha_m_, full);
     int c0 = grid_.width, r0 = grid_.height, c1 = 0, r1 = 0;
     for (int ty = 0; ty < tiles_y_; ++ty)

@@ -725,34 +725,39 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::function
     reset();
     return update(obstacles, rays());
   }
-  // Rays whose copies are all gone leave the list, new ones join it: one merge.
+  // Rays whose copies are all gone leave the list (a pass forward), new ones join it (a merge from
+  // the back), in place: the list keeps its memory from one update to the next.
   if (n_emptied > 0 || !inserted.empty())
   {
-    std::vector<Ray> merged_rays;
-    std::vector<std::uint32_t> merged_counts;
-    merged_rays.reserve(rays_.size() + inserted.size());
-    merged_counts.reserve(merged_rays.capacity());
-    std::size_t j = 0;
+    std::size_t kept = 0;
     for (std::size_t i = 0; i < rays_.size(); ++i)
     {
-      for (; j < inserted.size() && inserted[j] < rays_[i]; ++j)
-      {
-        merged_rays.push_back(inserted[j]);
-        merged_counts.push_back(inserted_count[j]);
-      }
       if (ray_count_[i] > 0)
       {
-        merged_rays.push_back(rays_[i]);
-        merged_counts.push_back(ray_count_[i]);
+        rays_[kept] = rays_[i];
+        ray_count_[kept] = ray_count_[i];
+        ++kept;
       }
     }
-    for (; j < inserted.size(); ++j)
+    const std::size_t total = kept + inserted.size();
+    rays_.resize(total);
+    ray_count_.resize(total);
+    for (std::size_t i = kept, j = inserted.size(), w = total; j > 0;)
     {
-      merged_rays.push_back(inserted[j]);
-      merged_counts.push_back(inserted_count[j]);
+      --w;
+      if (i > 0 && inserted[j - 1] < rays_[i - 1])
+      {
+        --i;
+        rays_[w] = rays_[i];
+        ray_count_[w] = ray_count_[i];
+      }
+      else
+      {
+        --j;
+        rays_[w] = inserted[j];
+        ray_count_[w] = inserted_count[j];
+      }
     }
-    rays_.swap(merged_rays);
-    ray_count_.swap(merged_counts);
   }
   markAroundDirty(dirty_occ, write);
   result.n_rays = rays_.size();

@@ -704,21 +704,30 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
   {
     return stats;
   }
-  // The coarse voxels of the points held from before: in range when they were inserted.
-  std::vector<Cell> held_cells;
-  if (also_held)
-  {
-    held_cells.reserve(also_held->size());
-    for (const auto& q : *also_held)
+  // The coarse voxels of the points held from before (in range when they were inserted) lie
+  // between those of their coordinates' extremes: a key grows with its coordinate.
+  auto heldInRange = [&](auto visit) {
+    if (also_held)
     {
-      const Eigen::Vector3d p = q.cast<double>();
-      if (inRange(p))
+      for (const auto& q : *also_held)
       {
-        held_cells.push_back(cellOf(tree_->coordToKey(p.x(), p.y(), p.z())));
-        lo = lo.min(held_cells.back());
-        hi = hi.max(held_cells.back());
+        const Eigen::Vector3d p = q.cast<double>();
+        if (inRange(p))
+        {
+          visit(p);
+        }
       }
     }
+  };
+  Eigen::Vector3d held_lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), held_hi = -held_lo;
+  heldInRange([&](const Eigen::Vector3d& p) {
+    held_lo = held_lo.cwiseMin(p);
+    held_hi = held_hi.cwiseMax(p);
+  });
+  if (held_lo.x() <= held_hi.x())
+  {
+    lo = lo.min(cellOf(tree_->coordToKey(held_lo.x(), held_lo.y(), held_lo.z())));
+    hi = hi.max(cellOf(tree_->coordToKey(held_hi.x(), held_hi.y(), held_hi.z())));
   }
 
   CellMarks marks(lo, hi);
@@ -726,10 +735,7 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
   {
     marks.mark(e.cell, CellMarks::kEndpoint);
   }
-  for (const auto& c : held_cells)
-  {
-    marks.mark(c, CellMarks::kEndpoint);
-  }
+  heldInRange([&](const Eigen::Vector3d& p) { marks.mark(cellOf(tree_->coordToKey(p.x(), p.y(), p.z())), CellMarks::kEndpoint); });
   // Rays in a dense box are walked in batches, two at a time (markSegments).
   std::vector<Segment> batch;
   auto castRay = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca, const Cell& cb,

@@ -1,7 +1,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <map>
 #include <stdexcept>
 #include <vector>
 
@@ -108,8 +107,8 @@ AlphaShapeResult computeAlphaShape(const PointList2D& points, double alpha_m)
                                                         f->vertex(Delaunay::ccw(i))->point(),
                                                         f->vertex(i)->point()) == CGAL::ON_BOUNDED_SIDE;
   };
-  // Regular edges oriented with the interior on their left, keyed by their start vertex.
-  std::multimap<std::pair<double, double>, std::pair<Point2, Point2>> outgoing;
+  // Regular edges oriented with the interior on their left.
+  std::vector<std::pair<Point2, Point2>> regular;
   for (auto it = dt.finite_edges_begin(); it != dt.finite_edges_end(); ++it)
   {
     Face f = it->first;
@@ -138,27 +137,51 @@ AlphaShapeResult computeAlphaShape(const PointList2D& points, double alpha_m)
     }
     const Point2& a = f->vertex(Delaunay::ccw(i))->point();
     const Point2& b = f->vertex(Delaunay::cw(i))->point();
-    outgoing.emplace(std::make_pair(a.x(), a.y()), std::make_pair(a, b));
+    regular.emplace_back(a, b);
   }
-  // Chain into closed rings. At a vertex where rings touch any continuation is valid: the even-odd
-  // fill of the rings depends only on the set of edges.
-  while (!outgoing.empty())
+  // Chain into closed rings: every vertex has as many regular edges in as out, so a walk from an
+  // edge comes back to its start. At a vertex where rings touch any continuation is valid (the
+  // even-odd fill of the rings depends only on the set of edges); the first unused edge in
+  // (start, end) order is taken. The triangulation's own order of its edges is not fixed: on grid
+  // points, full of cocircular quadruples, it changed with the state of the heap, and rings
+  // chained in it with it (their count, not their fill).
+  auto lexLess = [](const Point2& p, const Point2& q) { return p.x() < q.x() || (p.x() == q.x() && p.y() < q.y()); };
+  std::sort(regular.begin(), regular.end(), [&](const std::pair<Point2, Point2>& e, const std::pair<Point2, Point2>& f) {
+    return lexLess(e.first, f.first) || (e.first == f.first && lexLess(e.second, f.second));
+  });
+  std::vector<char> used(regular.size(), 0);
+  auto unusedFrom = [&](const Point2& p) {
+    auto it = std::lower_bound(regular.begin(), regular.end(), p,
+                               [&](const std::pair<Point2, Point2>& e, const Point2& q) { return lexLess(e.first, q); });
+    for (; it != regular.end() && it->first == p; ++it)
+    {
+      if (!used[static_cast<std::size_t>(it - regular.begin())])
+      {
+        return static_cast<std::size_t>(it - regular.begin());
+      }
+    }
+    return regular.size();
+  };
+  for (std::size_t first = 0; first < regular.size(); ++first)
   {
-    auto first = outgoing.begin();
-    const Point2 start = first->second.first;
-    Point2 current = first->second.second;
+    if (used[first])
+    {
+      continue;
+    }
+    used[first] = 1;
+    const Point2 start = regular[first].first;
+    Point2 current = regular[first].second;
     std::vector<Eigen::Vector2d> ring{ toEigen(start) };
-    outgoing.erase(first);
     while (!(current == start))
     {
       ring.push_back(toEigen(current));
-      auto next = outgoing.find(std::make_pair(current.x(), current.y()));
-      if (next == outgoing.end())
+      const std::size_t next = unusedFrom(current);
+      if (next == regular.size())
       {
         break;
       }
-      current = next->second.second;
-      outgoing.erase(next);
+      used[next] = 1;
+      current = regular[next].second;
     }
     if (ring.size() >= 3)
     {

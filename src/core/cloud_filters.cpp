@@ -362,73 +362,88 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
   auto pointOf = [&](std::size_t c) -> const Eigen::Vector3f& {
     return c < n_removed ? removed[c] : added[c - n_removed];
   };
-  // The changes in voxel order: one radix sort of (packed key, change) when the batch's voxel
-  // indices, offset to its minimum, pack into 64 bits (always, short of a cloud 10^6 leaves wide
-  // on every axis); a comparison sort otherwise. Keys are computed again where needed rather than
-  // stored: memory, not arithmetic, bounds this for 10^6 points.
-  std::vector<std::uint32_t> order;
-  if (n > 0)
+  // The changes in voxel order. When the batch's voxel indices, offset to its minimum, and the
+  // change's own index pack into 64 bits (10^6 changes spanning 800 m on every axis at 5 cm still
+  // do), each change is one 8-byte item, packed key above the change's index, radix-sorted by the
+  // key stably; the walk below then compares packed keys instead of computing keys again. Otherwise
+  // a comparison sort of the changes by their keys.
+  auto bits = [](std::uint64_t span) {
+    int b = 0;
+    while (b < 63 && (span >> b) != 0)
+    {
+      ++b;
+    }
+    return b;
+  };
+  // A key grows with each coordinate: the keys of the coordinates' minima and maxima bound them.
+  Eigen::Array3f min_p = Eigen::Array3f::Zero(), max_p = min_p;
+  for (std::size_t c = 0; c < n; ++c)
   {
-    Key lo = keyOf(pointOf(0)), hi = lo;
-    for (std::size_t c = 1; c < n; ++c)
+    const Eigen::Array3f p = pointOf(c).array();
+    min_p = c == 0 ? p : min_p.min(p);
+    max_p = c == 0 ? p : max_p.max(p);
+  }
+  const Key lo = keyOf(min_p.matrix()), hi = keyOf(max_p.matrix());
+  const int bx = bits(static_cast<std::uint64_t>(hi.x - lo.x)), by = bits(static_cast<std::uint64_t>(hi.y - lo.y)),
+            bz = bits(static_cast<std::uint64_t>(hi.z - lo.z)), bc = bits(n > 0 ? n - 1 : 0);
+  const bool packs = bx + by + bz + bc <= 64;
+  // Shifts of 64 are undefined: a field of no bits, always 0, is left out.
+  auto field = [](std::uint64_t value, int width, int shift) { return width == 0 ? std::uint64_t{ 0 } : value << shift; };
+  auto low = [](std::uint64_t value, int width) { return width == 0 ? std::uint64_t{ 0 } : value & (~std::uint64_t{ 0 } >> (64 - width)); };
+  std::vector<std::uint64_t> sorted;  // packed: key above change
+  std::vector<Key> keys;              // otherwise: per change, its key
+  std::vector<std::uint32_t> order;   // and the changes sorted by it
+  if (packs)
+  {
+    sorted.resize(n);
+    for (std::size_t c = 0; c < n; ++c)
     {
       const Key k = keyOf(pointOf(c));
-      lo = Key{ std::min(lo.z, k.z), std::min(lo.y, k.y), std::min(lo.x, k.x) };
-      hi = Key{ std::max(hi.z, k.z), std::max(hi.y, k.y), std::max(hi.x, k.x) };
+      sorted[c] = field(static_cast<std::uint64_t>(k.z - lo.z), bz, bc + bx + by) |
+                  field(static_cast<std::uint64_t>(k.y - lo.y), by, bc + bx) |
+                  field(static_cast<std::uint64_t>(k.x - lo.x), bx, bc) | c;
     }
-    auto bits = [](std::int64_t span) {
-      int b = 0;
-      while (b < 63 && (span >> b) != 0)
-      {
-        ++b;
-      }
-      return b;
-    };
-    const int bx = bits(hi.x - lo.x), by = bits(hi.y - lo.y), bz = bits(hi.z - lo.z);
-    if (bx + by + bz <= 64)
-    {
-      std::vector<std::pair<std::uint64_t, std::uint32_t>> packed(n);
-      for (std::size_t c = 0; c < n; ++c)
-      {
-        const Key k = keyOf(pointOf(c));
-        const std::uint64_t z = static_cast<std::uint64_t>(k.z - lo.z), y = static_cast<std::uint64_t>(k.y - lo.y),
-                            x = static_cast<std::uint64_t>(k.x - lo.x);
-        packed[c] = { (bz == 0 ? 0 : z << (bx + by)) | (by == 0 ? 0 : y << bx) | x, static_cast<std::uint32_t>(c) };
-      }
-      radixSortBy(packed, [](const std::pair<std::uint64_t, std::uint32_t>& e) { return e.first; });
-      order.resize(n);
-      for (std::size_t c = 0; c < n; ++c)
-      {
-        order[c] = packed[c].second;
-      }
-    }
-    else
-    {
-      std::vector<Key> keys(n);
-      order.resize(n);
-      for (std::size_t c = 0; c < n; ++c)
-      {
-        keys[c] = keyOf(pointOf(c));
-        order[c] = static_cast<std::uint32_t>(c);
-      }
-      std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
-    }
+    radixSortBy(sorted, [bc](std::uint64_t e) { return e >> bc; });
   }
+  else
+  {
+    keys.resize(n);
+    order.resize(n);
+    for (std::size_t c = 0; c < n; ++c)
+    {
+      keys[c] = keyOf(pointOf(c));
+      order[c] = static_cast<std::uint32_t>(c);
+    }
+    std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
+  }
+  // The j-th change in voxel order, whether it lies in the same voxel as the i-th, and its voxel.
+  auto changeAt = [&](std::size_t j) { return packs ? static_cast<std::size_t>(low(sorted[j], bc)) : order[j]; };
+  auto sameVoxel = [&](std::size_t i, std::size_t j) {
+    return packs ? (sorted[i] ^ sorted[j]) >> bc == 0 : keys[order[i]] == keys[order[j]];
+  };
+  auto keyAt = [&](std::size_t j) {
+    if (!packs)
+    {
+      return keys[order[j]];
+    }
+    const std::uint64_t code = sorted[j] >> bc;
+    return Key{ lo.z + static_cast<std::int64_t>(bx + by == 64 ? 0 : low(code >> (bx + by), bz)),
+                lo.y + static_cast<std::int64_t>(low(code >> bx, by)), lo.x + static_cast<std::int64_t>(low(code, bx)) };
+  };
 
   n_dropped_ = 0;
   n_unknown_removals_ = 0;
   // Walks the changes voxel by voxel: calls apply(key, sum added, count added, sum removed, count removed).
   auto forEachVoxel = [&](auto apply) {
-    Key next = n > 0 ? keyOf(pointOf(order[0])) : Key{ 0, 0, 0 };
     for (std::size_t j = 0; j < n;)
     {
-      const Key key = next;
+      const std::size_t first = j;
       // Sums of this voxel's additions and removals: exact in double, so their order does not matter.
       Eigen::Vector3d add = Eigen::Vector3d::Zero(), rem = Eigen::Vector3d::Zero();
       std::int64_t n_add = 0, n_rem = 0;
       do
       {
-        const std::uint32_t c = order[j];
+        const std::size_t c = changeAt(j);
         const Eigen::Vector3d p = pointOf(c).cast<double>();
         if (c < n_removed)
         {
@@ -441,12 +456,8 @@ void IncrementalVoxelGrid::update(const PointList& added, const PointList& remov
           ++n_add;
         }
         ++j;
-        if (j < n)
-        {
-          next = keyOf(pointOf(order[j]));
-        }
-      } while (j < n && next == key);
-      apply(key, add, n_add, rem, n_rem);
+      } while (j < n && sameVoxel(first, j));
+      apply(keyAt(first), add, n_add, rem, n_rem);
     }
   };
   auto centroidOf = [](const Voxel& v) {
@@ -613,34 +624,44 @@ void IncrementalVoxelFilter::clear()
   last_points_.clear();
 }
 
-const PointList& IncrementalVoxelFilter::apply(const PointList& points)
+const PointList& IncrementalVoxelFilter::apply(PointList points)
 {
   added_.clear();
   removed_.clear();
-  previous_index_.assign(points.size(), -1);
   const std::size_t common = std::min(points.size(), last_points_.size());
-  for (std::size_t i = 0; i < common; ++i)
+  const std::size_t appended = points.size() - common;
+  // Removing and adding most of the points costs twice a build, and a build keeps voxel order: once
+  // more than half the cloud is known to have changed, the lists of changes are not made further.
+  auto mostlyChanged = [&](std::size_t n_added) { return 2 * n_added > points.size(); };
+  rebuilt_ = common == 0 || mostlyChanged(appended);
+  if (!enabled_)
   {
-    if (points[i] == last_points_[i])
-    {
-      previous_index_[i] = static_cast<std::int32_t>(i);
-    }
-    else
+    previous_index_.assign(points.size(), -1);
+  }
+  for (std::size_t i = 0; i < common && !rebuilt_; ++i)
+  {
+    if (!(points[i] == last_points_[i]))
     {
       removed_.push_back(last_points_[i]);
       added_.push_back(points[i]);
+      rebuilt_ = mostlyChanged(added_.size() + appended);
+    }
+    else if (!enabled_)
+    {
+      previous_index_[i] = static_cast<std::int32_t>(i);
     }
   }
-  removed_.insert(removed_.end(), last_points_.begin() + static_cast<std::ptrdiff_t>(common), last_points_.end());
-  added_.insert(added_.end(), points.begin() + static_cast<std::ptrdiff_t>(common), points.end());
-  // Removing and adding most of the points costs twice a build, and a build keeps voxel order.
-  rebuilt_ = common == 0 || 2 * added_.size() > points.size();
-  n_changed_ = rebuilt_ ? points.size() : added_.size();
   if (rebuilt_)
   {
     std::fill(previous_index_.begin(), previous_index_.end(), -1);
   }
-  last_points_ = points;
+  else
+  {
+    removed_.insert(removed_.end(), last_points_.begin() + static_cast<std::ptrdiff_t>(common), last_points_.end());
+    added_.insert(added_.end(), points.begin() + static_cast<std::ptrdiff_t>(common), points.end());
+  }
+  n_changed_ = rebuilt_ ? points.size() : added_.size();
+  last_points_ = std::move(points);
   if (!enabled_)
   {
     return last_points_;
@@ -648,13 +669,12 @@ const PointList& IncrementalVoxelFilter::apply(const PointList& points)
   if (rebuilt_)
   {
     grid_.clear();
-    grid_.update(points, PointList());
+    grid_.update(last_points_, PointList());
   }
   else
   {
     grid_.update(added_, removed_);
   }
-  previous_index_ = grid_.previousIndex();
   return grid_.centroids();
 }
 

@@ -4,18 +4,16 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
-#include <pcl/ModelCoefficients.h>
-#include <pcl/PointIndices.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
-#include <pcl/sample_consensus/method_types.h>
-#include <pcl/sample_consensus/model_types.h>
-#include <pcl/segmentation/sac_segmentation.h>
+#include <pcl/sample_consensus/ransac.h>
+#include <pcl/sample_consensus/sac_model_perpendicular_plane.h>
 
 #include "kth_smallest.h"
 #include "spatial_hash.h"
@@ -268,6 +266,62 @@ struct Candidate
   FloorPlane plane;
 };
 
+/**
+ * PCL's plane model with an axis constraint, counting inliers (RANSAC's inner loop) straight from
+ * the points. PCL 1.13 as Debian builds it (without SSE4.1) counts in countWithinDistanceStandard,
+ * which copies each point into a 4-vector on the stack and loads it back whole: a failed
+ * store-to-load forward per point, most of the floor stage's sample consensus time. The distance
+ * here is that compiled code's float arithmetic in its order, |(a x + c z) + (b y + d)| (a 4-lane
+ * product summed high half onto low), so every count, and so every plane, is PCL's.
+ */
+class PerpendicularPlaneModel : public pcl::SampleConsensusModelPerpendicularPlane<pcl::PointXYZ>
+{
+public:
+  using pcl::SampleConsensusModelPerpendicularPlane<pcl::PointXYZ>::SampleConsensusModelPerpendicularPlane;
+
+  std::size_t countWithinDistance(const Eigen::VectorXf& model_coefficients, const double threshold) const override
+  {
+    if (!isModelValid(model_coefficients))
+    {
+      return 0;
+    }
+    const float a = model_coefficients[0], b = model_coefficients[1], c = model_coefficients[2], d = model_coefficients[3];
+    std::size_t n = 0;
+    for (const auto i : *indices_)
+    {
+      const pcl::PointXYZ& p = (*input_)[static_cast<std::size_t>(i)];
+      const float distance = (a * p.x + c * p.z) + (b * p.y + d);
+      n += std::abs(distance) < threshold ? 1 : 0;
+    }
+    return n;
+  }
+};
+
+/// What pcl::SACSegmentation::segment does with RANSAC, the model above (PCL's fixed seed) and
+/// optimised coefficients, step by step: the plane's inliers and coefficients, or false when no
+/// plane was found.
+bool segmentPlane(const pcl::PointCloud<pcl::PointXYZ>::Ptr& cloud, const Eigen::Vector3f& axis, double eps_angle_rad,
+                  double threshold, int max_iterations, pcl::Indices& inliers, Eigen::VectorXf& coefficients)
+{
+  const auto model = std::make_shared<PerpendicularPlaneModel>(cloud);
+  model->setAxis(axis);
+  model->setEpsAngle(eps_angle_rad);
+  pcl::RandomSampleConsensus<pcl::PointXYZ> sac(model, threshold);
+  sac.setMaxIterations(max_iterations);
+  if (!sac.computeModel())
+  {
+    return false;
+  }
+  pcl::Indices found;
+  sac.getInliers(found);
+  Eigen::VectorXf raw(model->getModelSize());
+  sac.getModelCoefficients(raw);
+  coefficients.resize(model->getModelSize());
+  model->optimizeModelCoefficients(found, raw, coefficients);
+  model->selectWithinDistance(coefficients, threshold, inliers);
+  return true;
+}
+
 /// Extracts up to max_planes planes within eps_deg of up; inliers are removed after each one. A
 /// plane holding no more than last_above_inliers points ends the search: the ones after it hold
 /// fewer still.
@@ -276,28 +330,20 @@ std::vector<Candidate> extractPlanes(pcl::PointCloud<pcl::PointXYZ>::Ptr cloud, 
 {
   std::vector<Candidate> out;
   const Eigen::Vector3d up = cfg.up_axis.normalized();
-  pcl::SACSegmentation<pcl::PointXYZ> seg;
-  seg.setOptimizeCoefficients(true);
-  seg.setModelType(pcl::SACMODEL_PERPENDICULAR_PLANE);
-  seg.setMethodType(pcl::SAC_RANSAC);
-  seg.setAxis(up.cast<float>());
-  seg.setEpsAngle(eps_deg * kDegToRad);
-  seg.setDistanceThreshold(cfg.distance_threshold_m);
-  seg.setMaxIterations(cfg.max_iterations);
   const std::size_t needed = std::max<std::size_t>(
       cfg.min_inliers, static_cast<std::size_t>(std::ceil(cfg.min_inlier_fraction * static_cast<double>(cloud->size()))));
   for (int k = 0; k < max_planes && cloud->size() >= needed; ++k)
   {
-    pcl::ModelCoefficients coefficients;
-    pcl::PointIndices inliers;
-    seg.setInputCloud(cloud);
-    seg.segment(inliers, coefficients);
-    if (inliers.indices.size() < needed || coefficients.values.size() != 4)
+    pcl::Indices inliers;
+    Eigen::VectorXf coefficients;
+    if (!segmentPlane(cloud, up.cast<float>(), eps_deg * kDegToRad, cfg.distance_threshold_m, cfg.max_iterations, inliers,
+                      coefficients) ||
+        inliers.size() < needed || coefficients.size() != 4)
     {
       break;
     }
-    Eigen::Vector3d n(coefficients.values[0], coefficients.values[1], coefficients.values[2]);
-    double d = coefficients.values[3];
+    Eigen::Vector3d n(coefficients[0], coefficients[1], coefficients[2]);
+    double d = coefficients[3];
     const double norm = n.norm();
     if (!(norm > 0.0) || !std::isfinite(d))
     {
@@ -314,24 +360,24 @@ std::vector<Candidate> extractPlanes(pcl::PointCloud<pcl::PointXYZ>::Ptr cloud, 
     c.plane.normal = n;
     c.plane.d = d;
     c.plane.tilt_deg = tiltDeg(n, up);
-    c.plane.n_inliers = inliers.indices.size();
+    c.plane.n_inliers = inliers.size();
     // The refit may leave the cone slightly; beyond the tolerance the plane is not a candidate
     // but its inliers still go.
     if (c.plane.tilt_deg <= eps_deg + kRefitToleranceDeg)
     {
       out.push_back(c);
     }
-    if (inliers.indices.size() <= last_above_inliers)
+    if (inliers.size() <= last_above_inliers)
     {
       break;
     }
     std::vector<char> drop(cloud->size(), 0);
-    for (int i : inliers.indices)
+    for (const auto i : inliers)
     {
       drop[static_cast<std::size_t>(i)] = 1;
     }
     pcl::PointCloud<pcl::PointXYZ>::Ptr rest(new pcl::PointCloud<pcl::PointXYZ>);
-    rest->points.reserve(cloud->size() - inliers.indices.size());
+    rest->points.reserve(cloud->size() - inliers.size());
     for (std::size_t i = 0; i < cloud->size(); ++i)
     {
       if (!drop[i])

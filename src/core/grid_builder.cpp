@@ -6,9 +6,14 @@
 #include <iterator>
 #include <stdexcept>
 #include <tuple>
+#include <utility>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "radix_sort.h"
 
@@ -48,6 +53,123 @@ void bresenham(int x0, int y0, int x1, int y1, Visit visit)
   }
 }
 
+/// bresenham()'s walk as a cursor over the cells' indices row * width + col in a grid.
+struct LineCursor
+{
+  int dx, dy, sx, sy, err, index, left;  // sy steps a row: +-width
+
+  LineCursor(int x0, int y0, int x1, int y1, int width)
+    : dx(std::abs(x1 - x0))
+    , dy(-std::abs(y1 - y0))
+    , sx(x0 < x1 ? 1 : -1)
+    , sy(y0 < y1 ? width : -width)
+    , err(dx + dy)
+    , index(y0 * width + x0)
+    , left(std::max(dx, -dy))
+  {
+  }
+  void step()
+  {
+    const int e2 = 2 * err;
+    const bool step_x = e2 >= dy;
+    const bool step_y = e2 <= dx;
+    err += (step_x ? dy : 0) + (step_y ? dx : 0);
+    index += (step_x ? sx : 0) + (step_y ? sy : 0);
+    --left;
+  }
+};
+
+/// Adds 1 to cover[i] for the index i of each cell of each of n lines (line(k) gives the k-th
+/// LineCursor). A line's steps wait each on the last (its error term), so one line at a time
+/// leaves the core idle most of each step: with SSE2 four lines step at once, one per lane, and
+/// each step's four cells are counted in turn; the last lines finish one at a time.
+template <typename Line>
+void coverLines(std::size_t n, Line line, std::uint32_t* cover)
+{
+  std::size_t next = 0;
+#if defined(__SSE2__)
+  if (n >= 4)
+  {
+    LineCursor lanes[4] = { line(0), line(1), line(2), line(3) };
+    next = 4;
+    alignas(16) int err[4], index[4], dx[4], dy[4], sx[4], sy[4];
+    while (true)
+    {
+      int steps = lanes[0].left;
+      for (int l = 0; l < 4; ++l)
+      {
+        err[l] = lanes[l].err;
+        index[l] = lanes[l].index;
+        dx[l] = lanes[l].dx;
+        dy[l] = lanes[l].dy;
+        sx[l] = lanes[l].sx;
+        sy[l] = lanes[l].sy;
+        steps = std::min(steps, lanes[l].left);
+      }
+      // Every lane takes steps + 1 cells: the one it is at and steps more.
+      __m128i e = _mm_load_si128(reinterpret_cast<const __m128i*>(err));
+      __m128i at = _mm_load_si128(reinterpret_cast<const __m128i*>(index));
+      const __m128i vdx = _mm_load_si128(reinterpret_cast<const __m128i*>(dx));
+      const __m128i vdy = _mm_load_si128(reinterpret_cast<const __m128i*>(dy));
+      const __m128i vsx = _mm_load_si128(reinterpret_cast<const __m128i*>(sx));
+      const __m128i vsy = _mm_load_si128(reinterpret_cast<const __m128i*>(sy));
+      for (int s = 0; s <= steps; ++s)
+      {
+        alignas(16) int cells[4];
+        _mm_store_si128(reinterpret_cast<__m128i*>(cells), at);
+        ++cover[cells[0]];
+        ++cover[cells[1]];
+        ++cover[cells[2]];
+        ++cover[cells[3]];
+        const __m128i e2 = _mm_add_epi32(e, e);
+        const __m128i step_x = _mm_xor_si128(_mm_cmpgt_epi32(vdy, e2), _mm_set1_epi32(-1));  // e2 >= dy
+        const __m128i step_y = _mm_xor_si128(_mm_cmpgt_epi32(e2, vdx), _mm_set1_epi32(-1));  // e2 <= dx
+        e = _mm_add_epi32(e, _mm_add_epi32(_mm_and_si128(step_x, vdy), _mm_and_si128(step_y, vdx)));
+        at = _mm_add_epi32(at, _mm_add_epi32(_mm_and_si128(step_x, vsx), _mm_and_si128(step_y, vsy)));
+      }
+      _mm_store_si128(reinterpret_cast<__m128i*>(err), e);
+      _mm_store_si128(reinterpret_cast<__m128i*>(index), at);
+      bool refilled = true;
+      for (int l = 0; l < 4; ++l)
+      {
+        lanes[l].err = err[l];
+        lanes[l].index = index[l];
+        lanes[l].left -= steps + 1;
+        if (lanes[l].left < 0)
+        {
+          if (next == n)
+          {
+            refilled = false;
+          }
+          else
+          {
+            lanes[l] = line(next++);
+          }
+        }
+      }
+      if (!refilled)
+      {
+        for (LineCursor& rest : lanes)
+        {
+          for (; rest.left >= 0; rest.step())
+          {
+            ++cover[rest.index];
+          }
+        }
+        return;
+      }
+    }
+  }
+#endif
+  for (; next < n; ++next)
+  {
+    for (LineCursor c = line(next); c.left >= 0; c.step())
+    {
+      ++cover[c.index];
+    }
+  }
+}
+
 /// Sorts rays (x0, y0, x1, y1 lexicographic) and drops repeats, counting each ray's copies in
 /// counts (parallel to the rays left). Rays within 65536 cells of each other, as in any real map,
 /// are packed into one 64-bit key in that same order and radix-sorted: a hundred thousand rays
@@ -84,12 +206,19 @@ void sortUnique(std::vector<GridBuilder::Ray>& rays, std::vector<std::uint32_t>&
     rays.resize(out);
     return;
   }
+  // Fields of only as many bits as the span needs: the sort passes over fewer digits.
+  int b = 1;
+  while (b < 16 && (hi - lo) >> b != 0)
+  {
+    ++b;
+  }
+  const std::uint64_t mask = (std::uint64_t{ 1 } << b) - 1;
   std::vector<std::uint64_t> keys;
   keys.reserve(rays.size());
   for (const auto& r : rays)
   {
-    keys.push_back(static_cast<std::uint64_t>(r.x0 - lo) << 48 | static_cast<std::uint64_t>(r.y0 - lo) << 32 |
-                   static_cast<std::uint64_t>(r.x1 - lo) << 16 | static_cast<std::uint64_t>(r.y1 - lo));
+    keys.push_back(static_cast<std::uint64_t>(r.x0 - lo) << (3 * b) | static_cast<std::uint64_t>(r.y0 - lo) << (2 * b) |
+                   static_cast<std::uint64_t>(r.x1 - lo) << b | static_cast<std::uint64_t>(r.y1 - lo));
   }
   radixSort(keys);
   rays.clear();
@@ -101,17 +230,18 @@ void sortUnique(std::vector<GridBuilder::Ray>& rays, std::vector<std::uint32_t>&
       continue;
     }
     const std::uint64_t k = keys[i];
-    rays.push_back(GridBuilder::Ray{ static_cast<std::int32_t>((k >> 48) + lo), static_cast<std::int32_t>(((k >> 32) & 0xffff) + lo),
-                                     static_cast<std::int32_t>(((k >> 16) & 0xffff) + lo), static_cast<std::int32_t>((k & 0xffff) + lo) });
+    rays.push_back(GridBuilder::Ray{ static_cast<std::int32_t>((k >> (3 * b)) + lo), static_cast<std::int32_t>(((k >> (2 * b)) & mask) + lo),
+                                     static_cast<std::int32_t>(((k >> b) & mask) + lo), static_cast<std::int32_t>((k & mask) + lo) });
     counts.push_back(1);
   }
 }
 
-/// Sorts (y, x) cells and drops repeats. update() keeps cell indices within +-(1e9 + 1), so the
+/// Sorts (y, x) cells and drops repeats, counting each cell's copies in counts. update() keeps cell indices within +-(1e9 + 1), so the
 /// offsets from the minima fit 32 bits each and one 64-bit key per cell, radix-sorted, orders them
 /// as the pairs do: std::sort of ~45k pairs took ~1.5 ms per full rebuild.
-void sortUniqueCells(std::vector<std::pair<std::int64_t, std::int64_t>>& cells)
+void sortUniqueCells(std::vector<std::pair<std::int64_t, std::int64_t>>& cells, std::vector<std::uint32_t>& counts)
 {
+  counts.clear();
   if (cells.empty())
   {
     return;
@@ -129,11 +259,16 @@ void sortUniqueCells(std::vector<std::pair<std::int64_t, std::int64_t>>& cells)
     keys.push_back(static_cast<std::uint64_t>(c.first - min_y) << 32 | static_cast<std::uint64_t>(c.second - min_x));
   }
   radixSort(keys);
-  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-  cells.resize(keys.size());
+  cells.clear();
   for (std::size_t i = 0; i < keys.size(); ++i)
   {
-    cells[i] = { static_cast<std::int64_t>(keys[i] >> 32) + min_y, static_cast<std::int64_t>(keys[i] & 0xffffffffu) + min_x };
+    if (i > 0 && keys[i] == keys[i - 1])
+    {
+      ++counts.back();
+      continue;
+    }
+    cells.emplace_back(static_cast<std::int64_t>(keys[i] >> 32) + min_y, static_cast<std::int64_t>(keys[i] & 0xffffffffu) + min_x);
+    counts.push_back(1);
   }
 }
 
@@ -205,7 +340,7 @@ void GridBuilder::reset()
   last_shape_ = AlphaShapeResult();
 }
 
-GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<FreeRay>& rays)
+GridUpdate GridBuilder::update(const PointList2D& obstacles, std::vector<FreeRay> rays)
 {
   GridUpdate result;
   const double res = config_.resolution_m;
@@ -221,7 +356,8 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
       cells.emplace_back(cy, cx);
     }
   }
-  sortUniqueCells(cells);
+  std::vector<std::uint32_t> cell_counts;  // obstacle points per cell
+  sortUniqueCells(cells, cell_counts);
 
   std::vector<Ray> new_rays;
   new_rays.reserve(rays.size());
@@ -233,6 +369,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
       new_rays.push_back(converted);
     }
   }
+  std::vector<FreeRay>().swap(rays);  // done with: its pages serve the arrays below
   std::vector<std::uint32_t> new_counts;
   sortUnique(new_rays, new_counts);
   result.n_obstacle_cells = cells.size();
@@ -361,10 +498,14 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   {
     std::fill(write.begin(), write.end(), 1);
     ray_cover_.assign(grid_.data.size(), 0);
-    for (const auto& r : new_rays)
-    {
-      walkRay(r, [&](int col, int row) { ++ray_cover_[static_cast<std::size_t>(row) * grid_.width + col]; });
-    }
+    coverLines(
+        new_rays.size(),
+        [&](std::size_t k) {
+          const Ray& r = new_rays[k];
+          return LineCursor(static_cast<int>(r.x0 - cell0_x_), static_cast<int>(r.y0 - cell0_y_), static_cast<int>(r.x1 - cell0_x_),
+                            static_cast<int>(r.y1 - cell0_y_), grid_.width);
+        },
+        ray_cover_.data());
   }
   else
   {
@@ -398,12 +539,10 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   ray_count_.swap(new_counts);
   // How many obstacle points each cell holds: what an update by a change counts down and up.
   obstacle_count_.assign(grid_.data.size(), 0);
-  for (const auto& p : obstacles)
+  for (std::size_t i = 0; i < cells.size(); ++i)
   {
-    if (toCell(p, cx, cy))
-    {
-      ++obstacle_count_[static_cast<std::size_t>(cy - cell0_y_) * grid_.width + static_cast<std::size_t>(cx - cell0_x_)];
-    }
+    obstacle_count_[static_cast<std::size_t>(cells[i].first - cell0_y_) * grid_.width +
+                    static_cast<std::size_t>(cells[i].second - cell0_x_)] = cell_counts[i];
   }
   return finish(write, full, result);
 }
@@ -438,11 +577,12 @@ bool GridBuilder::toRay(const FreeRay& r, Ray& out) const
   return true;
 }
 
-GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<FreeRay>& rays, const GridChange& change)
+GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::function<std::vector<FreeRay>()>& rays,
+                               const GridChange& change)
 {
   if (grid_.empty() || obstacle_count_.size() != grid_.data.size())
   {
-    return update(obstacles, rays);
+    return update(obstacles, rays());
   }
   const double res = config_.resolution_m;
   const int tile = config_.tile_size_cells;
@@ -468,7 +608,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
     {
       if (!fits(ray.x0, ray.y0) || !fits(ray.x1, ray.y1))
       {
-        return update(obstacles, rays);
+        return update(obstacles, rays());
       }
       rays_added.push_back(ray);
     }
@@ -478,7 +618,7 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   {
     if (toCell(p, x, y) && !fits(x, y))
     {
-      return update(obstacles, rays);
+      return update(obstacles, rays());
     }
   }
 
@@ -583,36 +723,41 @@ GridUpdate GridBuilder::update(const PointList2D& obstacles, const std::vector<F
   {
     // The change does not follow from what this builder holds: start from the lists.
     reset();
-    return update(obstacles, rays);
+    return update(obstacles, rays());
   }
-  // Rays whose copies are all gone leave the list, new ones join it: one merge.
+  // Rays whose copies are all gone leave the list (a pass forward), new ones join it (a merge from
+  // the back), in place: the list keeps its memory from one update to the next.
   if (n_emptied > 0 || !inserted.empty())
   {
-    std::vector<Ray> merged_rays;
-    std::vector<std::uint32_t> merged_counts;
-    merged_rays.reserve(rays_.size() + inserted.size());
-    merged_counts.reserve(merged_rays.capacity());
-    std::size_t j = 0;
+    std::size_t kept = 0;
     for (std::size_t i = 0; i < rays_.size(); ++i)
     {
-      for (; j < inserted.size() && inserted[j] < rays_[i]; ++j)
-      {
-        merged_rays.push_back(inserted[j]);
-        merged_counts.push_back(inserted_count[j]);
-      }
       if (ray_count_[i] > 0)
       {
-        merged_rays.push_back(rays_[i]);
-        merged_counts.push_back(ray_count_[i]);
+        rays_[kept] = rays_[i];
+        ray_count_[kept] = ray_count_[i];
+        ++kept;
       }
     }
-    for (; j < inserted.size(); ++j)
+    const std::size_t total = kept + inserted.size();
+    rays_.resize(total);
+    ray_count_.resize(total);
+    for (std::size_t i = kept, j = inserted.size(), w = total; j > 0;)
     {
-      merged_rays.push_back(inserted[j]);
-      merged_counts.push_back(inserted_count[j]);
+      --w;
+      if (i > 0 && inserted[j - 1] < rays_[i - 1])
+      {
+        --i;
+        rays_[w] = rays_[i];
+        ray_count_[w] = ray_count_[i];
+      }
+      else
+      {
+        --j;
+        rays_[w] = inserted[j];
+        ray_count_[w] = inserted_count[j];
+      }
     }
-    rays_.swap(merged_rays);
-    ray_count_.swap(merged_counts);
   }
   markAroundDirty(dirty_occ, write);
   result.n_rays = rays_.size();
@@ -681,7 +826,8 @@ GridUpdate GridBuilder::finish(const std::vector<std::uint8_t>& write, bool full
     wx1 = std::min(tiles_x_ - 1, wx1 + margin);
     wy1 = std::min(tiles_y_ - 1, wy1 + margin);
     const Window window{ wx0 * tile, wy0 * tile, (wx1 - wx0 + 1) * tile, (wy1 - wy0 + 1) * tile };
-    const std::vector<std::int8_t> before = grid_.data;
+    // A full rebuild changes every tile it writes: nothing to compare with.
+    const std::vector<std::int8_t> before = full ? std::vector<std::int8_t>() : grid_.data;
     recomputeWindow(window, write, alpha_m_, full);
     int c0 = grid_.width, r0 = grid_.height, c1 = 0, r1 = 0;
     for (int ty = 0; ty < tiles_y_; ++ty)

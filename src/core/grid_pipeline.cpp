@@ -86,9 +86,9 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       p *= s;
     }
     timer.lap("guard");
-    const PointList& voxels = voxel_.apply(points);
-    r.n_changed_points = voxel_.numChanged();
     r.voxel.n_in = points.size();
+    const PointList& voxels = voxel_.apply(std::move(points));
+    r.n_changed_points = voxel_.numChanged();
     r.voxel.n_out = voxels.size();
     timer.lap("voxel");
     if (voxels.empty())
@@ -144,11 +144,11 @@ GridPipelineResult GridPipeline::process(const PointList& slam_points, const Poi
       change.obstacles_added = std::move(g.obstacles_added_xy);
       change.rays_removed = std::move(g.rays_removed);
       change.rays_added = std::move(g.rays_added);
-      r.grid = builder_.update(obstacles, g.rays, change);
+      r.grid = builder_.update(obstacles, [this] { return ground_.rays(); }, change);
     }
     else
     {
-      r.grid = builder_.update(obstacles, g.rays);
+      r.grid = builder_.update(obstacles, std::move(g.rays));
     }
     builder_saw_last_ground_ = r.grid.ok;
     timer.lap("grid");

@@ -111,6 +111,26 @@ void GroundMapper::reset()
   }
 }
 
+std::vector<FreeRay> GroundMapper::rays() const
+{
+  std::vector<FreeRay> rays;
+  if (last_kind_.empty())
+  {
+    return rays;
+  }
+  rays.reserve(last_out_.size());
+  FreeRay ray;
+  for (std::size_t k = 0; k < last_out_.size(); ++k)
+  {
+    if (bandRay(last_cameras_out_[last_camera_[k]], last_camera_h_[last_camera_[k]], last_out_[k], last_h_[k],
+                config_.floor_clearance_m, config_.ceiling_height_m, ray))
+    {
+      rays.push_back(ray);
+    }
+  }
+  return rays;
+}
+
 GroundMapperResult GroundMapper::process(const PointList& input, const std::vector<Eigen::Vector3d>& cameras,
                                          const std::vector<std::int32_t>* previous_index)
 {
@@ -157,11 +177,11 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   std::vector<char> keep = has_previous
                                ? density_.keepFlagsUpdated(input, *previous_index, last_input_, last_keep_, &r.density)
                                : density_.keepFlags(input, &r.density);
-  // The points that go on, and for each the index it had among those of the last call (-1: new).
-  // Scratch members here and below keep their capacity between calls: fresh buffers per update
-  // cost more in page faults than the update's own work.
-  PointList& points = points_;
-  points.clear();
+  // The points that go on (by their index in input), and for each the index it had among those of
+  // the last call (-1: new). Scratch members here and below keep their capacity between calls:
+  // fresh buffers per update cost more in page faults than the update's own work.
+  std::vector<std::uint32_t>& kept = kept_;
+  kept.clear();
   std::vector<std::int32_t>& dense_of_input = dense_of_input_;
   dense_of_input.assign(input.size(), -1);
   std::vector<std::int32_t>& dense_previous = dense_previous_;
@@ -170,8 +190,8 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   {
     if (keep[i])
     {
-      dense_of_input[i] = static_cast<std::int32_t>(points.size());
-      points.push_back(input[i]);
+      dense_of_input[i] = static_cast<std::int32_t>(kept.size());
+      kept.push_back(static_cast<std::uint32_t>(i));
       if (has_previous)  // read only when this call continues from the last
       {
         const std::int32_t k = (*previous_index)[i];
@@ -211,27 +231,35 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     r.cameras.push_back(r.to_output * cams_in[c]);
     cam_height[c] = plane.normal.dot(cams_in[c]) + plane.d;
   }
+  // In the output frame, as transformPoints() maps them.
+  const std::size_t n_points = kept.size();
+  auto pointAt = [&](std::size_t i) -> const Eigen::Vector3f& { return input[kept[i]]; };
   PointList& out = out_;
-  if (config_.align_to_floor)
+  out.resize(n_points);
+  const Eigen::Isometry3f to_output = r.to_output.cast<float>();
+  for (std::size_t i = 0; i < n_points; ++i)
   {
-    transformPoints(points, r.to_output, out);
-  }
-  else
-  {
-    out = points;
+    if (config_.align_to_floor)
+    {
+      out[i] = to_output * pointAt(i);
+    }
+    else
+    {
+      out[i] = pointAt(i);
+    }
   }
   std::vector<std::size_t>& nearest = nearest_;
-  nearest.assign(points.size(), 0);
+  nearest.assign(n_points, 0);
   if (cams_in.size() > 1)
   {
-    for (std::size_t i = 0; i < points.size(); ++i)
+    for (std::size_t i = 0; i < n_points; ++i)
     {
       if (previousOf(i) >= 0)
       {
         nearest[i] = last_camera_[static_cast<std::size_t>(previousOf(i))];
         continue;
       }
-      const Eigen::Vector3d p = points[i].cast<double>();
+      const Eigen::Vector3d p = pointAt(i).cast<double>();
       double best = std::numeric_limits<double>::infinity();
       for (std::size_t c = 0; c < cams_in.size(); ++c)
       {
@@ -251,7 +279,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     // Only the new points can cast rays or hit voxels; all keep their voxels from being freed.
     PointList fresh;
     std::vector<std::size_t> fresh_nearest;
-    for (std::size_t i = 0; i < points.size(); ++i)
+    for (std::size_t i = 0; i < n_points; ++i)
     {
       if (previousOf(i) < 0)
       {
@@ -272,12 +300,12 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   const bool filter = octree_ && config_.free_space_filter;
   // Heights first, so that the octree states of the band points come from one batch query.
   std::vector<double>& heights = heights_;
-  heights.resize(points.size());
+  heights.resize(n_points);
   std::vector<char>& kind = kind_;
-  kind.resize(points.size());
+  kind.resize(n_points);
   PointList band;
   std::vector<std::size_t> band_index;
-  for (std::size_t i = 0; i < points.size(); ++i)
+  for (std::size_t i = 0; i < n_points; ++i)
   {
     if (previousOf(i) >= 0)
     {
@@ -285,7 +313,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
       kind[i] = last_kind_[static_cast<std::size_t>(previousOf(i))];
       continue;
     }
-    heights[i] = plane.normal.dot(points[i].cast<double>()) + plane.d;
+    heights[i] = plane.normal.dot(pointAt(i).cast<double>()) + plane.d;
     if (heights[i] < z_lo)
     {
       kind[i] = kFloorBand;
@@ -320,10 +348,13 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   std::vector<std::size_t>& candidate_index = candidate_index_;
   candidates.clear();
   candidate_index.clear();
-  r.obstacles.reserve(points.size());
-  r.rays.reserve(points.size());
+  r.obstacles.reserve(n_points);
+  if (!continues)
+  {
+    r.rays.reserve(n_points);
+  }
   FreeRay ray;
-  for (std::size_t i = 0; i < points.size(); ++i)
+  for (std::size_t i = 0; i < n_points; ++i)
   {
     const double h = heights[i];
     switch (kind[i])
@@ -345,7 +376,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
         candidates.push_back(PassCandidate{ out[i].head<2>().cast<double>(), h });
         candidate_index.push_back(i);
     }
-    if (bandRay(r.cameras[nearest[i]], cam_height[nearest[i]], out[i], h, z_lo, z_hi, ray))
+    if (!continues && bandRay(r.cameras[nearest[i]], cam_height[nearest[i]], out[i], h, z_lo, z_hi, ray))
     {
       r.rays.push_back(ray);
     }
@@ -376,7 +407,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   auto rayOf = [&](std::size_t i) {
     return PassRay{ static_cast<std::uint32_t>(nearest[i]), out[i].head<2>().cast<double>(), heights[i] };
   };
-  const PassRaySource all_rays{ points.size(), rayOf };
+  const PassRaySource all_rays{ n_points, rayOf };
   bool counted = true;
   if (config_.clear_hit_min_rays > 0)
   {
@@ -389,7 +420,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
     {
       std::vector<PassRay> removed_rays, added_rays;
       std::vector<PassCandidate> removed_candidates, added_candidates;
-      for (std::size_t i = 0; i < points.size(); ++i)
+      for (std::size_t i = 0; i < n_points; ++i)
       {
         if (previousOf(i) < 0)
         {
@@ -419,7 +450,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   }
   const std::uint32_t min_rays = static_cast<std::uint32_t>(config_.clear_hit_min_rays);
   std::vector<char>& obstacle = obstacle_;
-  obstacle.assign(points.size(), 0);
+  obstacle.assign(n_points, 0);
   for (std::size_t j = 0; j < candidates.size(); ++j)
   {
     if (config_.clear_hit_min_rays > 0 && counted && pass_count_.count(candidates[j].xy) >= min_rays)
@@ -436,7 +467,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   {
     // How the obstacles and rays differ from the last call's, for an update of the grid by them alone.
     r.incremental = true;
-    for (std::size_t i = 0; i < points.size(); ++i)
+    for (std::size_t i = 0; i < n_points; ++i)
     {
       const std::int32_t k = previousOf(i);
       if (k >= 0)
@@ -471,6 +502,8 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   // What the next call continues from.
   last_dense_of_input_.swap(dense_of_input_);
   last_cameras_ = cams_in;
+  last_cameras_out_ = r.cameras;
+  last_camera_h_ = cam_height;
   last_kind_.swap(kind_);
   last_obstacle_.swap(obstacle_);
   last_out_.swap(out_);
@@ -481,7 +514,7 @@ GroundMapperResult GroundMapper::process(const PointList& input, const std::vect
   char buf[320];
   std::snprintf(buf, sizeof(buf), "%zu points: %zu floor band, %zu ceiling band, %zu obstacles, %zu in free space, "
                 "%zu seen past%s; floor tilt %.1f deg",
-                points.size(), r.n_floor_band, r.n_ceiling_band, r.obstacles.size(), r.n_freed, r.n_passed,
+                n_points, r.n_floor_band, r.n_ceiling_band, r.obstacles.size(), r.n_freed, r.n_passed,
                 counted ? "" : " (not counted: the cloud spans more than clear_max_cells)", plane.tilt_deg);
   r.status = buf;
   return r;

@@ -15,6 +15,10 @@
 #include <octomap/OcTree.h>
 #include <octomap/octomap.h>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "radix_sort.h"
 
 namespace sparse_nav
@@ -226,11 +230,17 @@ class CellMarks
 public:
   static constexpr std::uint8_t kRay = 1, kEndpoint = 2;
 
+  // A dense box has a margin of one cell on every side: a segment between two cells of the box
+  // steps at most one cell past its end (rounding at a cell corner; the next boundary after that
+  // one lies a whole cell further along the segment), so a walk may mark unchecked and the margin,
+  // never read, takes such marks.
   CellMarks(const Cell& lo, const Cell& hi) : lo_(lo), size_(hi - lo + 1)
   {
-    const double n = static_cast<double>(size_.x()) * size_.y() * size_.z();
+    const double n = (static_cast<double>(size_.x()) + 2) * (size_.y() + 2) * (size_.z() + 2);
     if (n <= 64.0 * 1024 * 1024)
     {
+      row_ = size_.x() + 2;
+      slice_ = row_ * (size_.y() + 2);
       dense_.assign(static_cast<std::size_t>(n), 0);
     }
   }
@@ -244,26 +254,22 @@ public:
     (dense_.empty() ? sparse_[packCell(c)] : dense_[index(c)]) |= bits;
   }
   bool isDense() const { return !dense_.empty(); }
-  /// mark() for a dense box, with the box in its own copies: a traversal's inner loop then holds
-  /// no hash-map code (whose register pressure spilled the traversal's state to the stack), and
-  /// its byte stores, which may alias anything, do not force the box to be reloaded per cell.
+  /// A dense box's storage, in copies of its own: a walk's byte stores, which may alias anything,
+  /// then do not force the box to be reloaded per cell.
   struct DenseWriter
   {
-    Cell lo, size;
+    Cell lo;
+    std::ptrdiff_t row, slice;  // index steps of y and z
     std::uint8_t* data;
-    void mark(const Cell& c, std::uint8_t bits) const
+    /// The place of c, in the box or its margin.
+    std::ptrdiff_t index(const Cell& c) const
     {
-      const Cell d = c - lo;
-      if (static_cast<unsigned>(d.x()) < static_cast<unsigned>(size.x()) &&
-          static_cast<unsigned>(d.y()) < static_cast<unsigned>(size.y()) &&
-          static_cast<unsigned>(d.z()) < static_cast<unsigned>(size.z()))
-      {
-        data[(static_cast<std::size_t>(d.z()) * size.y() + d.y()) * size.x() + d.x()] |= bits;
-      }
+      const Cell d = c - lo + 1;
+      return d.z() * slice + d.y() * row + d.x();
     }
   };
   /// The writer of a dense box (isDense()); valid while this lives.
-  DenseWriter denseWriter() { return DenseWriter{ lo_, size_, dense_.data() }; }
+  DenseWriter denseWriter() { return DenseWriter{ lo_, row_, slice_, dense_.data() }; }
   /// Calls visit(Morton code) for every cell whose marks are exactly `bits`, in increasing code
   /// order: the order the octree update needs, reached in a dense box by descending its aligned
   /// cubes in Morton order instead of sorting ~10^5 codes afterwards. Cubes whose rows hold no
@@ -330,8 +336,8 @@ private:
   }
   std::size_t index(const Cell& c) const
   {
-    const Cell d = c - lo_;
-    return (static_cast<std::size_t>(d.z()) * size_.y() + d.y()) * size_.x() + d.x();
+    const Cell d = c - lo_ + 1;
+    return static_cast<std::size_t>(d.z() * slice_ + d.y() * row_ + d.x());
   }
   /// The cells marked exactly `bits` in the box and in the aligned cube of edge 2^level at corner,
   /// in Morton order (a cube's children in Morton order: x is the lowest bit of the child index).
@@ -375,55 +381,167 @@ private:
     }
   }
   Cell lo_, size_;
+  std::ptrdiff_t row_ = 0, slice_ = 0;  // dense: index steps of y and z, margin included
   std::vector<std::uint8_t> dense_;
   std::unordered_map<std::uint64_t, std::uint8_t> sparse_;
 };
 
-/// Visits the coarse cells on the segment from a to b (metres), Amanatides-Woo; includes the cell
-/// of a, and the cell of b only when include_end. Cells are `size` metres, cell i starting at
+/// The coarse cells on the segment from a to b (metres), Amanatides-Woo: the cell of a, one more
+/// per step, and the cell of b only when include_end. Cells are `size` metres, cell i starting at
 /// (i - offset) * size.
-template <typename Visit>
-void traverse(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca, const Cell& cb, double size,
-              int offset, bool include_end, Visit visit)
+struct Segment
 {
-  Cell c = ca;
-  const Eigen::Vector3d d = b - a;
-  Eigen::Vector3d t_max, t_delta;
-  Cell step;
-  for (int i = 0; i < 3; ++i)
+  Cell cell;       // the current cell
+  Cell step;       // per axis: +1, -1, or 0 when it does not move
+  Cell end;        // the cell of b
+  double t[3];     // per axis: where along the segment (0 at a, 1 at b) its next boundary lies
+  double dt[3];    // ... and the distance between its boundaries
+  int remaining;   // steps left
+  bool include_end;
+
+  Segment(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca, const Cell& cb, double size, int offset,
+          bool include)
+    : cell(ca), step(Cell::Zero()), end(cb), remaining((cb - ca).abs().sum()), include_end(include)
   {
-    step[i] = cb[i] > ca[i] ? 1 : (cb[i] < ca[i] ? -1 : 0);
-    if (step[i] == 0 || d[i] == 0.0)
+    const Eigen::Vector3d d = b - a;
+    for (int i = 0; i < 3; ++i)
     {
-      step[i] = 0;
-      t_max[i] = t_delta[i] = std::numeric_limits<double>::infinity();
-      continue;
+      step[i] = cb[i] > ca[i] ? 1 : (cb[i] < ca[i] ? -1 : 0);
+      if (step[i] == 0 || d[i] == 0.0)
+      {
+        step[i] = 0;
+        t[i] = dt[i] = std::numeric_limits<double>::infinity();
+        continue;
+      }
+      const double boundary = (static_cast<double>(ca[i] - offset) + (step[i] > 0 ? 1.0 : 0.0)) * size;
+      t[i] = (boundary - a[i]) / d[i];
+      dt[i] = size / std::abs(d[i]);
     }
-    const double boundary = (static_cast<double>(c[i] - offset) + (step[i] > 0 ? 1.0 : 0.0)) * size;
-    t_max[i] = (boundary - a[i]) / d[i];
-    t_delta[i] = size / std::abs(d[i]);
   }
-  // Branch-free step choice, kept in registers: which axis steps next is a coin toss along most
-  // rays, and a branch on it mispredicts about every other cell.
-  double t0 = t_max[0], t1 = t_max[1], t2 = t_max[2];
-  int x = c[0], y = c[1], z = c[2];
-  for (int remaining = (cb - ca).abs().sum(); remaining > 0; --remaining)
+  /// One step: the axis whose boundary comes first moves (x before y before z on a tie).
+  void advance()
   {
-    visit(Cell(x, y, z));
-    const bool sx = t0 <= t1 && t0 <= t2;
-    const bool sy = !sx && t1 <= t2;
+    const bool sx = t[0] <= t[1] && t[0] <= t[2];
+    const bool sy = !sx && t[1] <= t[2];
     const bool sz = !sx && !sy;
-    x += sx ? step[0] : 0;
-    y += sy ? step[1] : 0;
-    z += sz ? step[2] : 0;
-    t0 += sx ? t_delta[0] : 0.0;
-    t1 += sy ? t_delta[1] : 0.0;
-    t2 += sz ? t_delta[2] : 0.0;
+    cell[0] += sx ? step[0] : 0;
+    cell[1] += sy ? step[1] : 0;
+    cell[2] += sz ? step[2] : 0;
+    t[0] += sx ? dt[0] : 0.0;
+    t[1] += sy ? dt[1] : 0.0;
+    t[2] += sz ? dt[2] : 0.0;
+    --remaining;
   }
-  c = Cell(x, y, z);
-  if (include_end || (c != cb).any())
+  /// Whether the cell reached by the last step is one of the segment's.
+  bool endsInCell() const { return include_end || (cell != end).any(); }
+};
+
+/// Visits the cells of a segment.
+template <typename Visit>
+void traverse(Segment s, Visit visit)
+{
+  for (; s.remaining > 0; s.advance())
   {
-    visit(c);
+    visit(s.cell);
+  }
+  if (s.endsInCell())
+  {
+    visit(s.cell);
+  }
+}
+
+/// Sets bits on the cells of each segment in a dense box. One segment's steps each wait on the
+/// last (compare, select, add), most of each step on a single segment; with SSE2 two segments
+/// step at once in the lanes of vectors, their cells' places kept as indices (marked unchecked:
+/// the box's margin holds any cell past an end), until one ends and the next takes its lane.
+void markSegments(const std::vector<Segment>& segments, const CellMarks::DenseWriter& box, std::uint8_t bits)
+{
+  std::size_t next = 0;
+#if defined(__SSE2__)
+  if (segments.size() >= 2)
+  {
+    Segment lanes[2] = { segments[0], segments[1] };
+    next = 2;
+    while (true)
+    {
+      const Segment& a = lanes[0];
+      const Segment& b = lanes[1];
+      const int steps = std::min(a.remaining, b.remaining);
+      __m128d t0 = _mm_set_pd(b.t[0], a.t[0]), t1 = _mm_set_pd(b.t[1], a.t[1]), t2 = _mm_set_pd(b.t[2], a.t[2]);
+      const __m128d dt0 = _mm_set_pd(b.dt[0], a.dt[0]), dt1 = _mm_set_pd(b.dt[1], a.dt[1]), dt2 = _mm_set_pd(b.dt[2], a.dt[2]);
+      const __m128i step_x = _mm_set_epi64x(b.step[0], a.step[0]);
+      const __m128i step_y = _mm_set_epi64x(b.step[1] * box.row, a.step[1] * box.row);
+      const __m128i step_z = _mm_set_epi64x(b.step[2] * box.slice, a.step[2] * box.slice);
+      const __m128i all = _mm_set1_epi32(-1);
+      __m128i at = _mm_set_epi64x(box.index(b.cell), box.index(a.cell));
+      for (int s = 0; s < steps; ++s)
+      {
+        box.data[_mm_cvtsi128_si64(at)] |= bits;
+        box.data[_mm_cvtsi128_si64(_mm_unpackhi_epi64(at, at))] |= bits;
+        const __m128d x01 = _mm_cmple_pd(t0, t1), x02 = _mm_cmple_pd(t0, t2), y12 = _mm_cmple_pd(t1, t2);
+        const __m128d sx = _mm_and_pd(x01, x02);
+        const __m128d sy = _mm_andnot_pd(sx, y12);
+        const __m128d sz = _mm_andnot_pd(_mm_or_pd(sx, y12), _mm_castsi128_pd(all));
+        t0 = _mm_add_pd(t0, _mm_and_pd(sx, dt0));
+        t1 = _mm_add_pd(t1, _mm_and_pd(sy, dt1));
+        t2 = _mm_add_pd(t2, _mm_and_pd(sz, dt2));
+        at = _mm_add_epi64(at, _mm_add_epi64(_mm_and_si128(_mm_castpd_si128(sx), step_x),
+                                             _mm_add_epi64(_mm_and_si128(_mm_castpd_si128(sy), step_y),
+                                                           _mm_and_si128(_mm_castpd_si128(sz), step_z))));
+      }
+      alignas(16) double t[3][2];
+      alignas(16) std::int64_t index[2];
+      _mm_store_pd(t[0], t0);
+      _mm_store_pd(t[1], t1);
+      _mm_store_pd(t[2], t2);
+      _mm_store_si128(reinterpret_cast<__m128i*>(index), at);
+      bool refilled = true;
+      for (int l = 0; l < 2; ++l)
+      {
+        Segment& lane = lanes[l];
+        for (int i = 0; i < 3; ++i)
+        {
+          lane.t[i] = t[i][l];
+        }
+        // Back from the index to the cell: each axis moved only in its step's direction.
+        const std::int64_t z = index[l] / box.slice, y = index[l] % box.slice / box.row, x = index[l] % box.row;
+        lane.cell = box.lo + Cell(static_cast<int>(x), static_cast<int>(y), static_cast<int>(z)) - 1;
+        lane.remaining -= steps;
+        if (lane.remaining > 0)
+        {
+          continue;
+        }
+        if (lane.endsInCell())
+        {
+          box.data[index[l]] |= bits;
+        }
+        if (next == segments.size())
+        {
+          refilled = false;
+          lane.remaining = -1;
+        }
+        else
+        {
+          lane = segments[next++];
+        }
+      }
+      if (!refilled)
+      {
+        for (const Segment& rest : lanes)
+        {
+          if (rest.remaining >= 0)
+          {
+            traverse(rest, [&box, bits](const Cell& c) { box.data[box.index(c)] |= bits; });
+          }
+        }
+        return;
+      }
+    }
+  }
+#endif
+  for (; next < segments.size(); ++next)
+  {
+    traverse(segments[next], [&box, bits](const Cell& c) { box.data[box.index(c)] |= bits; });
   }
 }
 
@@ -586,21 +704,30 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
   {
     return stats;
   }
-  // The coarse voxels of the points held from before: in range when they were inserted.
-  std::vector<Cell> held_cells;
-  if (also_held)
-  {
-    held_cells.reserve(also_held->size());
-    for (const auto& q : *also_held)
+  // The coarse voxels of the points held from before (in range when they were inserted) lie
+  // between those of their coordinates' extremes: a key grows with its coordinate.
+  auto heldInRange = [&](auto visit) {
+    if (also_held)
     {
-      const Eigen::Vector3d p = q.cast<double>();
-      if (inRange(p))
+      for (const auto& q : *also_held)
       {
-        held_cells.push_back(cellOf(tree_->coordToKey(p.x(), p.y(), p.z())));
-        lo = lo.min(held_cells.back());
-        hi = hi.max(held_cells.back());
+        const Eigen::Vector3d p = q.cast<double>();
+        if (inRange(p))
+        {
+          visit(p);
+        }
       }
     }
+  };
+  Eigen::Vector3d held_lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), held_hi = -held_lo;
+  heldInRange([&](const Eigen::Vector3d& p) {
+    held_lo = held_lo.cwiseMin(p);
+    held_hi = held_hi.cwiseMax(p);
+  });
+  if (held_lo.x() <= held_hi.x())
+  {
+    lo = lo.min(cellOf(tree_->coordToKey(held_lo.x(), held_lo.y(), held_lo.z())));
+    hi = hi.max(cellOf(tree_->coordToKey(held_hi.x(), held_hi.y(), held_hi.z())));
   }
 
   CellMarks marks(lo, hi);
@@ -608,20 +735,22 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
   {
     marks.mark(e.cell, CellMarks::kEndpoint);
   }
-  for (const auto& c : held_cells)
-  {
-    marks.mark(c, CellMarks::kEndpoint);
-  }
+  heldInRange([&](const Eigen::Vector3d& p) { marks.mark(cellOf(tree_->coordToKey(p.x(), p.y(), p.z())), CellMarks::kEndpoint); });
+  // Rays in a dense box are walked in batches, two at a time (markSegments).
+  std::vector<Segment> batch;
   auto castRay = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Cell& ca, const Cell& cb,
                      bool include_end) {
-    if (marks.isDense())
+    const Segment segment(a, b, ca, cb, coarse, offset, include_end);
+    if (!marks.isDense())
     {
-      const CellMarks::DenseWriter writer = marks.denseWriter();
-      traverse(a, b, ca, cb, coarse, offset, include_end, [writer](const Cell& c) { writer.mark(c, CellMarks::kRay); });
+      traverse(segment, [&](const Cell& c) { marks.mark(c, CellMarks::kRay); });
+      return;
     }
-    else
+    batch.push_back(segment);
+    if (batch.size() == 1024)
     {
-      traverse(a, b, ca, cb, coarse, offset, include_end, [&](const Cell& c) { marks.mark(c, CellMarks::kRay); });
+      markSegments(batch, marks.denseWriter(), CellMarks::kRay);
+      batch.clear();
     }
   };
   // One ray per (camera, coarse endpoint voxel) among the new endpoints, to the voxel's centre.
@@ -664,6 +793,10 @@ OctreeInsertStats OctreeMap::insert(const PointList& points, const std::vector<E
         castRay(origin, stop, origin_cells[e.origin], cs, true);
       }
     }
+  }
+  if (!batch.empty())
+  {
+    markSegments(batch, marks.denseWriter(), CellMarks::kRay);
   }
   const float hit = tree_->getProbHitLog();
   const unsigned tree_depth = tree_->getTreeDepth();

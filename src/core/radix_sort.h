@@ -31,13 +31,14 @@ void radixSortBy(std::vector<T>& items, Key key)
   }
   constexpr int kDigitBits = 11;
   constexpr std::size_t kBuckets = std::size_t{ 1 } << kDigitBits;
-  std::vector<T> buffer(items.size());
+  std::vector<T> buffer;  // made at the first pass: keys that are all equal need none
   for (int shift = 0; shift < 64 && (differ >> shift) != 0; shift += kDigitBits)
   {
     if (((differ >> shift) & (kBuckets - 1)) == 0)
     {
       continue;  // every key has the same digit here
     }
+    buffer.resize(items.size());
     std::vector<std::size_t> start(kBuckets + 1, 0);
     for (const T& item : items)
     {

@@ -46,8 +46,14 @@ bool RayPassCount::counts(const PassRay& r) const
 
 void RayPassCount::widen(std::size_t k, double h)
 {
-  z_lo_[k] = std::min(z_lo_[k], static_cast<float>(h - config_.height_tolerance_m));
-  z_hi_[k] = std::max(z_hi_[k], static_cast<float>(h));
+  if (slot_[k] == kNoCell)
+  {
+    slot_[k] = static_cast<std::uint32_t>(cells_.size());
+    cells_.push_back(CandidateCell{ std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(), 0 });
+  }
+  CandidateCell& c = cells_[slot_[k]];
+  c.z_lo = std::min(c.z_lo, static_cast<float>(h - config_.height_tolerance_m));
+  c.z_hi = std::max(c.z_hi, static_cast<float>(h));
 }
 
 bool RayPassCount::inCameraCell(std::uint32_t camera, const IndexedRay& e) const
@@ -109,24 +115,24 @@ void RayPassCount::walk(std::size_t c, const Eigen::Vector2i& b_abs, const std::
     }
     if (x >= 0 && y >= 0 && x < size_.x() && y < size_.y())
     {
-      const std::size_t k = static_cast<std::size_t>(y) * size_.x() + static_cast<std::size_t>(x);
-      if (z_lo_[k] <= z_hi_[k])
+      CandidateCell* cell = candidateCell(static_cast<std::size_t>(y) * size_.x() + static_cast<std::size_t>(x));
+      if (cell && cell->z_lo <= cell->z_hi)
       {
         // At fraction f of the way, a ray to height hp is at h0 + f (hp - h0): within the cell's
         // range for hp in [h0 + (z_lo - h0) / f, h0 + (z_hi - h0) / f].
         std::uint32_t n = 0;
         if (s == 0)
         {
-          n = (h0 >= z_lo_[k] && h0 <= z_hi_[k]) ? static_cast<std::uint32_t>(heights.size()) : 0;
+          n = (h0 >= cell->z_lo && h0 <= cell->z_hi) ? static_cast<std::uint32_t>(heights.size()) : 0;
         }
         else
         {
           const double f = static_cast<double>(s) / steps;
-          const auto from = std::lower_bound(heights.begin(), heights.end(), h0 + (z_lo_[k] - h0) / f);
-          const auto to = std::upper_bound(from, heights.end(), h0 + (z_hi_[k] - h0) / f);
+          const auto from = std::lower_bound(heights.begin(), heights.end(), h0 + (cell->z_lo - h0) / f);
+          const auto to = std::upper_bound(from, heights.end(), h0 + (cell->z_hi - h0) / f);
           n = static_cast<std::uint32_t>(to - from);
         }
-        count_[k] += sign > 0 ? n : static_cast<std::uint32_t>(0) - n;
+        cell->count += sign > 0 ? n : static_cast<std::uint32_t>(0) - n;
       }
     }
     ++s;
@@ -160,12 +166,12 @@ bool RayPassCount::visits(const Eigen::Vector2i& a, const Eigen::Vector2i& b, co
 
 std::uint32_t RayPassCount::recount(const Eigen::Vector2i& k) const
 {
-  const std::size_t ki = index(k);
-  const float zl = z_lo_[ki], zh = z_hi_[ki];
-  if (!(zl <= zh))
+  const CandidateCell* cell = candidateCell(index(k));
+  if (!cell || !(cell->z_lo <= cell->z_hi))
   {
     return 0;
   }
+  const float zl = cell->z_lo, zh = cell->z_hi;
   std::uint32_t total = 0;
   auto tally = [&](std::size_t c, const IndexedRay& e) {
     int s = 0;
@@ -237,55 +243,78 @@ RayPassCount::IndexedRay RayPassCount::indexed(const PassRay& ray) const
 {
   const Eigen::Vector2i b = cellOf(ray.end_xy);
   const Eigen::Vector2i d = b - camera_cell_[ray.camera];
-  return IndexedRay{ angleKey(pseudoAngle(d.x(), d.y())), b.x(), b.y(), ray.end_h, false };
+  return IndexedRay{ ray.end_h, angleKey(pseudoAngle(d.x(), d.y())), b.x(), b.y(), false };
 }
 
-void RayPassCount::indexRays(const PassRaySource& rays)
+std::vector<RayPassCount::End> RayPassCount::sortedEnds(const PassRaySource& rays) const
 {
-  // Bucketed by direction in two passes (count, place): cheaper than sorting, and a window of
-  // directions is a run of buckets.
-  constexpr std::size_t kBuckets = std::size_t{ 1 } << (32 - kBucketShift);
-  index_.assign(camera_xy_.size(), CameraIndex());
-  std::vector<IndexedRay> entries;
-  std::vector<std::uint32_t> camera_of;
-  entries.reserve(rays.size);
-  camera_of.reserve(rays.size);
-  for (auto& ci : index_)
-  {
-    ci.start.assign(kBuckets + 1, 0);
-  }
+  std::vector<End> ends;
+  ends.reserve(rays.size);
   for (std::size_t i = 0; i < rays.size; ++i)
   {
     const PassRay r = rays.at(i);
     if (counts(r))
     {
-      const IndexedRay e = indexed(r);
-      if (!inCameraCell(r.camera, e))
-      {
-        entries.push_back(e);
-        camera_of.push_back(r.camera);
-        ++index_[r.camera].start[(e.key >> kBucketShift) + 1];
-      }
+      const Eigen::Vector2i e = cellOf(r.end_xy) + Eigen::Vector2i::Constant(kCellOffset);
+      ends.push_back(End{ r.camera, static_cast<std::uint64_t>(e.x()) << 32 | static_cast<std::uint32_t>(e.y()), r.end_h });
     }
   }
+  radixSortBy(ends, [](const End& e) { return e.camera; });
+  radixSortBy(ends, [](const End& e) { return e.cell; });
+  return ends;
+}
+
+Eigen::Vector2i RayPassCount::endCell(const End& e)
+{
+  return Eigen::Vector2i(static_cast<int>(e.cell >> 32) - kCellOffset, static_cast<int>(e.cell & 0xffffffffu) - kCellOffset);
+}
+
+void RayPassCount::indexRays(const std::vector<End>& ends)
+{
+  // Bucketed by direction in two passes (count, place): cheaper than sorting, and a window of
+  // directions is a run of buckets. A run of ends shares its direction, taken once.
+  constexpr std::size_t kBuckets = std::size_t{ 1 } << (32 - kBucketShift);
+  auto forEachRun = [&](auto visit) {
+    for (std::size_t g0 = 0, g1 = 0; g0 < ends.size(); g0 = g1)
+    {
+      for (g1 = g0 + 1; g1 < ends.size() && ends[g1].camera == ends[g0].camera && ends[g1].cell == ends[g0].cell; ++g1)
+      {
+      }
+      const std::size_t camera = static_cast<std::size_t>(ends[g0].camera);
+      const Eigen::Vector2i b = endCell(ends[g0]);
+      const Eigen::Vector2i d = b - camera_cell_[camera];
+      if (d.x() != 0 || d.y() != 0)  // a ray that ends in its camera's cell passes nothing and is not indexed
+      {
+        visit(index_[camera], angleKey(pseudoAngle(d.x(), d.y())), b, g0, g1);
+      }
+    }
+  };
+  index_.assign(camera_xy_.size(), CameraIndex());
   for (auto& ci : index_)
   {
+    ci.start.assign(kBuckets + 1, 0);
+  }
+  forEachRun([](CameraIndex& ci, std::uint32_t key, const Eigen::Vector2i&, std::size_t g0, std::size_t g1) {
+    ci.start[(key >> kBucketShift) + 1] += static_cast<std::uint32_t>(g1 - g0);
+  });
+  std::vector<std::vector<std::uint32_t>> fill(index_.size());
+  for (std::size_t c = 0; c < index_.size(); ++c)
+  {
+    CameraIndex& ci = index_[c];
     for (std::size_t b = 1; b <= kBuckets; ++b)
     {
       ci.start[b] += ci.start[b - 1];
     }
     ci.rays.resize(ci.start[kBuckets]);
+    fill[c].assign(ci.start.begin(), ci.start.end() - 1);
   }
-  std::vector<std::vector<std::uint32_t>> fill(index_.size());
-  for (std::size_t c = 0; c < index_.size(); ++c)
-  {
-    fill[c].assign(index_[c].start.begin(), index_[c].start.end() - 1);
-  }
-  for (std::size_t i = 0; i < entries.size(); ++i)
-  {
-    CameraIndex& ci = index_[camera_of[i]];
-    ci.rays[fill[camera_of[i]][entries[i].key >> kBucketShift]++] = entries[i];
-  }
+  forEachRun([&](CameraIndex& ci, std::uint32_t key, const Eigen::Vector2i& b, std::size_t g0, std::size_t g1) {
+    std::uint32_t& at = fill[static_cast<std::size_t>(&ci - index_.data())][key >> kBucketShift];
+    for (std::size_t g = g0; g < g1; ++g)
+    {
+      ci.rays[at++] = IndexedRay{ ends[g].h, key, b.x(), b.y(), false };
+    }
+  });
 }
 
 bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const std::vector<double>& camera_h,
@@ -307,9 +336,8 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
     }
   }
   size_ = Eigen::Vector2i::Zero();
-  z_lo_.clear();
-  z_hi_.clear();
-  count_.clear();
+  slot_.clear();
+  cells_.clear();
   block_cells_.clear();
   hot_.clear();
   index_.clear();
@@ -336,8 +364,7 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
   // Per cell: from the tolerance below its lowest candidate up to its highest. Only rays under an
   // obstacle's top count against it: rays over a box, or over the near part of its top towards
   // the far part, do not say that it is not there.
-  z_lo_.assign(n_cells, std::numeric_limits<float>::infinity());
-  z_hi_.assign(n_cells, -std::numeric_limits<float>::infinity());
+  slot_.assign(n_cells, kNoCell);
   for (const auto& p : candidates)
   {
     widen(index(cellOf(p.xy)), p.h);
@@ -347,32 +374,13 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
   block_cells_.assign(static_cast<std::size_t>(bw_) * bh_, 0);
   for (std::size_t k = 0; k < n_cells; ++k)
   {
-    block_cells_[blockOf(k)] += z_lo_[k] <= z_hi_[k] ? 1 : 0;
+    block_cells_[blockOf(k)] += holdsCandidates(k) ? 1 : 0;
   }
   setHot();
-  count_.assign(n_cells, 0);
   // Rays from one camera to one end cell share their cells and differ only in height: walked once
   // as a group, whose heights sorted give the count at a cell by two binary searches (a wall's
   // cell holds points at many heights).
-  struct End
-  {
-    std::uint64_t camera, cell;
-    double h;
-  };
-  constexpr int kCellOffset = 1 << 27;
-  std::vector<End> ends;
-  ends.reserve(rays.size);
-  for (std::size_t i = 0; i < rays.size; ++i)
-  {
-    const PassRay r = rays.at(i);
-    if (counts(r))
-    {
-      const Eigen::Vector2i e = cellOf(r.end_xy) + Eigen::Vector2i::Constant(kCellOffset);
-      ends.push_back(End{ r.camera, static_cast<std::uint64_t>(e.x()) << 32 | static_cast<std::uint32_t>(e.y()), r.end_h });
-    }
-  }
-  radixSortBy(ends, [](const End& e) { return e.camera; });
-  radixSortBy(ends, [](const End& e) { return e.cell; });
+  const std::vector<End> ends = sortedEnds(rays);
   std::vector<double> heights;
   for (std::size_t g0 = 0, g1 = 0; g0 < ends.size(); g0 = g1)
   {
@@ -382,11 +390,9 @@ bool RayPassCount::build(const std::vector<Eigen::Vector2d>& camera_xy, const st
       heights.push_back(ends[g1].h);
     }
     std::sort(heights.begin(), heights.end());
-    const Eigen::Vector2i b(static_cast<int>(ends[g0].cell >> 32) - kCellOffset,
-                            static_cast<int>(ends[g0].cell & 0xffffffffu) - kCellOffset);
-    walk(ends[g0].camera, b, heights, +1);
+    walk(ends[g0].camera, endCell(ends[g0]), heights, +1);
   }
-  indexRays(rays);
+  indexRays(ends);
   counted_ = true;
   return true;
 }
@@ -413,7 +419,7 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
   // Cells whose candidates changed: their height range is taken again from every candidate, and
   // their count from nothing after the rays below.
   std::vector<std::size_t> changed;
-  std::vector<char> is_changed(z_lo_.size(), 0);
+  std::vector<char> is_changed(slot_.size(), 0);
   auto markChanged = [&](const PassCandidate& p) {
     const Eigen::Vector2i c = cellOf(p.xy);
     if (inReach(p.xy) && inBox(c) && !is_changed[index(c)])
@@ -432,9 +438,12 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
   }
   for (const std::size_t k : changed)
   {
-    block_cells_[blockOf(k)] -= z_lo_[k] <= z_hi_[k] ? 1 : 0;
-    z_lo_[k] = std::numeric_limits<float>::infinity();
-    z_hi_[k] = -std::numeric_limits<float>::infinity();
+    block_cells_[blockOf(k)] -= holdsCandidates(k) ? 1 : 0;
+    if (CandidateCell* cell = candidateCell(k))
+    {
+      cell->z_lo = std::numeric_limits<float>::infinity();
+      cell->z_hi = -std::numeric_limits<float>::infinity();
+    }
   }
   if (!changed.empty())
   {
@@ -462,7 +471,7 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
   }
   for (const std::size_t k : changed)
   {
-    block_cells_[blockOf(k)] += z_lo_[k] <= z_hi_[k] ? 1 : 0;
+    block_cells_[blockOf(k)] += holdsCandidates(k) ? 1 : 0;
   }
   setHot();
 
@@ -544,14 +553,16 @@ bool RayPassCount::update(const std::vector<Eigen::Vector2d>& camera_xy, const s
   n_recounted_ = changed.size();
   for (const std::size_t k : changed)
   {
-    const Eigen::Vector2i c(lo_.x() + static_cast<int>(k % size_.x()), lo_.y() + static_cast<int>(k / size_.x()));
-    count_[k] = recount(c);
+    if (CandidateCell* cell = candidateCell(k))  // a cell that never held candidates counts nothing
+    {
+      cell->count = recount(Eigen::Vector2i(lo_.x() + static_cast<int>(k % size_.x()), lo_.y() + static_cast<int>(k / size_.x())));
+    }
   }
   // The rays added since the index was made are scanned in a second list, and the deleted ones
   // skipped: once they are a quarter of it, the index is made again.
   if (4 * n_stale > n_indexed)
   {
-    indexRays(rays);
+    indexRays(sortedEnds(rays));
   }
   return true;
 }
@@ -563,7 +574,8 @@ std::uint32_t RayPassCount::count(const Eigen::Vector2d& xy) const
     return 0;
   }
   const Eigen::Vector2i c = cellOf(xy);
-  return inBox(c) ? count_[index(c)] : 0;
+  const CandidateCell* cell = inBox(c) ? candidateCell(index(c)) : nullptr;
+  return cell ? cell->count : 0;
 }
 
 }  // namespace sparse_nav

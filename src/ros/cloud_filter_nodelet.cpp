@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <exception>
+#include <utility>
 
 #include "sparse_nav/ros/conversions.h"
 #include "sparse_nav/ros/node_utils.h"
@@ -74,7 +75,7 @@ void CloudFilterNodelet::onCloud(const sensor_msgs::PointCloud2ConstPtr& msg)
       return;
     }
     // SLAM map points keep their order between messages: only the voxels of those that moved change.
-    const PointList& filtered = voxel_->apply(points);
+    const PointList& filtered = voxel_->apply(std::move(points));
     n_in_ = n;
     n_out_ = filtered.size();
     n_changed_ = voxel_->numChanged();

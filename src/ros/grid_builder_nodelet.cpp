@@ -3,6 +3,7 @@
 #include <chrono>
 #include <exception>
 #include <limits>
+#include <utility>
 
 #include <map_msgs/OccupancyGridUpdate.h>
 #include <nav_msgs/OccupancyGrid.h>
@@ -161,7 +162,7 @@ void GridBuilderNodelet::onObstacles(const sensor_msgs::PointCloud2ConstPtr& msg
       for (const auto& p : floor_points_)
         addRay(p);
     }
-    const GridUpdate update = builder_->update(obstacles, rays);
+    const GridUpdate update = builder_->update(obstacles, std::move(rays));
     if (!update.ok)
     {
       ++n_rejected_;

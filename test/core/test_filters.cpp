@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <random>
 #include <tuple>
 #include <stdexcept>
@@ -340,6 +341,35 @@ TEST(VoxelFilter, HugeExtentKeepsEveryVoxel)
   EXPECT_EQ(stats.n_in, pts.size());
   EXPECT_EQ(out.size(), 51u);  // pairs merged, nothing returned raw
   EXPECT_TRUE(std::is_sorted(out.begin(), out.end(), [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) { return a.z() < b.z(); }));
+}
+
+TEST(VoxelFilter, CentroidsAreTheMeansOfTheVoxelsInVoxelOrder)
+{
+  // Points on both sides of zero, several per voxel: each centroid is its voxel's mean (sums in
+  // double), voxels sorted by z, then y, then x index.
+  std::mt19937 rng(5);
+  PointList pts = randomSlab(20000, rng);
+  const PointList half(pts.begin(), pts.begin() + 10000);
+  pts.insert(pts.end(), half.begin(), half.end());
+  const double leaf = 0.05, inv = 1.0 / leaf;
+  std::map<std::tuple<double, double, double>, std::pair<Eigen::Vector3d, int>> voxels;
+  for (const auto& p : pts)
+  {
+    const Eigen::Vector3d q = p.cast<double>();
+    auto& v = voxels.emplace(std::make_tuple(std::floor(q.z() * inv), std::floor(q.y() * inv), std::floor(q.x() * inv)),
+                             std::make_pair(Eigen::Vector3d::Zero(), 0))
+                  .first->second;
+    v.first += q;
+    ++v.second;
+  }
+  PointList expected;
+  for (const auto& kv : voxels)
+  {
+    expected.push_back((kv.second.first / kv.second.second).cast<float>());
+  }
+  VoxelFilterConfig cfg;
+  cfg.leaf_size_m = leaf;
+  EXPECT_TRUE(VoxelFilter(cfg).apply(pts) == expected);
 }
 
 TEST(IncrementalVoxelGrid, AnUpdateGivesTheCentroidsOfABuildFromScratch)

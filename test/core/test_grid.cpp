@@ -233,6 +233,32 @@ TEST(AlphaShape, SameEdgesAsCgalAlphaShape2)
   }
 }
 
+TEST(AlphaShape, RingsDoNotDependOnTheOrderOfThePoints)
+{
+  // Grid points are full of cocircular quadruples, whose triangulation, and the order in which it
+  // lists its edges, change with the order of insertion (and with the heap): the rings must not.
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> coord(0, 60);
+  std::set<std::pair<int, int>> cells;
+  while (cells.size() < 900)
+  {
+    const int x = coord(rng), y = coord(rng);
+    cells.emplace(x, y % 12 == 0 ? y : (x % 10 == 0 ? y : y / 3 * 3));
+  }
+  PointList2D points;
+  for (const auto& c : cells)
+  {
+    points.emplace_back(c.first, c.second);
+  }
+  const auto first = sparse_nav::computeAlphaShape(points, 1.5);
+  ASSERT_GT(first.rings.size(), 1u);
+  for (int trial = 0; trial < 5; ++trial)
+  {
+    std::shuffle(points.begin(), points.end(), rng);
+    EXPECT_TRUE(sparse_nav::computeAlphaShape(points, 1.5).rings == first.rings) << "shuffle " << trial;
+  }
+}
+
 TEST(Rasterisation, KnownSquareCells)
 {
   // Outline of a 21 x 21-cell square every 2 cells.
@@ -532,6 +558,38 @@ TEST(RadixSort, AgreesWithStdSort)
   }
 }
 
+TEST(GridBuilder, AFullBuildCoversTheCellsOfEachRayAsAWalkOfItAloneDoes)
+{
+  // A full build walks its rays four at a time; an update walks the rays it is given one by one.
+  // Built from all the rays at once, or from three and then the rest as a change, the grid is the
+  // same: rays of every length and direction, from one camera and from others, repeated, and ones
+  // that end in their start cell.
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> u(0.0, 6.0);
+  PointList2D obstacles;
+  std::vector<FreeRay> rays;
+  const std::vector<Eigen::Vector2d> cameras{ { 3.0, 3.0 }, { 0.7, 5.1 }, { 5.3, 0.4 } };
+  for (int i = 0; i < 997; ++i)
+  {
+    const Eigen::Vector2d end(u(rng), u(rng));
+    const Eigen::Vector2d& from = cameras[static_cast<std::size_t>(i) % cameras.size()];
+    obstacles.push_back(end);
+    rays.push_back(FreeRay{ from, i % 50 == 0 ? from + Eigen::Vector2d(0.01, 0.01) : end });
+  }
+  obstacles.insert(obstacles.end(), cameras.begin(), cameras.end());
+  GridBuilder all_at_once, three_then_rest;
+  all_at_once.update(obstacles, rays);
+  sparse_nav::GridChange rest;
+  rest.rays_added.assign(rays.begin() + 3, rays.end());
+  three_then_rest.update(obstacles, std::vector<FreeRay>(rays.begin(), rays.begin() + 3));
+  const GridUpdate updated = three_then_rest.update(obstacles, [&] { return rays; }, rest);
+  ASSERT_TRUE(updated.ok);
+  EXPECT_FALSE(updated.full_rebuild);
+  ASSERT_EQ(three_then_rest.grid().data.size(), all_at_once.grid().data.size());
+  EXPECT_TRUE(three_then_rest.grid().data == all_at_once.grid().data);
+  EXPECT_GT(all_at_once.grid().count(OccupancyGrid::kFree), 1000u);
+}
+
 TEST(GridBuilder, AnUpdateByTheChangeGivesTheGridOfTheWholeLists)
 {
   // A room's walls and rays to them from a camera, with repeated points and rays; each round some
@@ -585,7 +643,7 @@ TEST(GridBuilder, AnUpdateByTheChangeGivesTheGridOfTheWholeLists)
         change.rays_added.push_back(rays[i]);
       }
     }
-    const GridUpdate a = incremental.update(obstacles, rays, change);
+    const GridUpdate a = incremental.update(obstacles, [&] { return rays; }, change);
     const GridUpdate b = whole.update(obstacles, rays);
     ASSERT_TRUE(a.ok) << a.status;
     EXPECT_FALSE(a.full_rebuild);
@@ -601,14 +659,14 @@ TEST(GridBuilder, AnUpdateByTheChangeGivesTheGridOfTheWholeLists)
   far.rays_added.push_back(FreeRay{ camera, Eigen::Vector2d(12.0, 2.0) });
   obstacles.push_back(far.obstacles_added.back());
   rays.push_back(far.rays_added.back());
-  const GridUpdate grown = incremental.update(obstacles, rays, far);
+  const GridUpdate grown = incremental.update(obstacles, [&] { return rays; }, far);
   EXPECT_TRUE(grown.full_rebuild);
   whole.update(obstacles, rays);
   EXPECT_TRUE(incremental.grid().data == whole.grid().data);
   // A change that removes what the builder never held starts again from the lists.
   sparse_nav::GridChange wrong;
   wrong.rays_removed.push_back(FreeRay{ Eigen::Vector2d(1.0, 1.0), Eigen::Vector2d(1.3, 1.1) });
-  const GridUpdate restarted = incremental.update(obstacles, rays, wrong);
+  const GridUpdate restarted = incremental.update(obstacles, [&] { return rays; }, wrong);
   EXPECT_TRUE(restarted.full_rebuild);
   EXPECT_TRUE(incremental.grid().data == whole.grid().data);
 }

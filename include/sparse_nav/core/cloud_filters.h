@@ -213,14 +213,15 @@ class IncrementalVoxelFilter
 public:
   explicit IncrementalVoxelFilter(const VoxelFilterConfig& config = VoxelFilterConfig(), bool enabled = true);
 
-  /// @brief The centroids of points (points itself when disabled), valid until the next call.
-  const PointList& apply(const PointList& points);
+  /// @brief The centroids of points (points itself when disabled), valid until the next call. The
+  /// cloud is kept to compare the next one with: a caller done with it moves it in.
+  const PointList& apply(PointList points);
   /// @brief Forgets the last cloud: the next one is built from scratch.
   void clear();
 
   /// @brief Per output point of the last apply(): its index in the output before, when it is the
   /// same point, else -1.
-  const std::vector<std::int32_t>& previousIndex() const { return previous_index_; }
+  const std::vector<std::int32_t>& previousIndex() const { return enabled_ ? grid_.previousIndex() : previous_index_; }
   /// @brief Input points of the last apply() that differ from the cloud before (all of them after
   /// clear() or a rebuild).
   std::size_t numChanged() const { return n_changed_; }
@@ -232,7 +233,7 @@ private:
   bool enabled_;
   IncrementalVoxelGrid grid_;
   PointList last_points_;
-  std::vector<std::int32_t> previous_index_;
+  std::vector<std::int32_t> previous_index_;  // disabled only: per point, its index in the last cloud or -1
   std::size_t n_changed_ = 0;
   bool rebuilt_ = true;
   // Scratch of apply(), kept for its capacity.

@@ -2,6 +2,7 @@
 #define SPARSE_NAV_CORE_GRID_BUILDER_H
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -120,15 +121,17 @@ public:
   explicit GridBuilder(const GridBuilderConfig& config = GridBuilderConfig());
 
   /// @param obstacles obstacle points projected to the map x-y plane [m]
-  /// @param rays free-space rays [m]
-  GridUpdate update(const PointList2D& obstacles, const std::vector<FreeRay>& rays);
+  /// @param rays free-space rays [m]; a caller done with them moves them in, and their memory
+  ///        (as much as the grid's own) is given back before the grid's arrays are made
+  GridUpdate update(const PointList2D& obstacles, std::vector<FreeRay> rays);
   /**
    * @brief update(obstacles, rays) for lists that differ from the last call's by `change`, looking
    * at the changed cells and rays alone instead of comparing the whole lists. Falls back to
-   * update(obstacles, rays) when the change reaches beyond the grid or does not follow from what
-   * the last call gave (a removed point or ray it never held).
+   * update(obstacles, rays()) when the change reaches beyond the grid or does not follow from what
+   * the last call gave (a removed point or ray it never held): rays() gives the whole list of rays,
+   * asked for only then.
    */
-  GridUpdate update(const PointList2D& obstacles, const std::vector<FreeRay>& rays, const GridChange& change);
+  GridUpdate update(const PointList2D& obstacles, const std::function<std::vector<FreeRay>()>& rays, const GridChange& change);
   /// @brief Forgets everything; the next update is a full rebuild.
   void reset();
 

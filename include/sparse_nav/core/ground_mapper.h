@@ -71,7 +71,9 @@ struct GroundMapperResult
   DensityFilterStats density;  ///< the density filter's counts (the points it kept go on)
   PointList obstacles;     ///< points between the floor band and the ceiling band, not proven free
   PointList floor_points;  ///< points within floor_clearance_m of the floor plane
-  std::vector<FreeRay> rays;  ///< per point, the part of its ray from the nearest camera inside the band (x-y)
+  /// Per point, the part of its ray from the nearest camera inside the band (x-y). Empty when
+  /// `incremental`: an update needs only the rays that changed (GroundMapper::rays() makes all).
+  std::vector<FreeRay> rays;
   std::size_t n_floor_band = 0;    ///< points below floor_clearance_m
   std::size_t n_ceiling_band = 0;  ///< points above ceiling_height_m
   std::size_t n_freed = 0;         ///< band points dropped because their voxel is free
@@ -121,6 +123,10 @@ public:
   /// @brief Forgets the floor and the octree.
   void reset();
 
+  /// @brief The rays GroundMapperResult::rays lists for the last process() that got through (the
+  /// same rays, in the order of that call's points), also when that call was incremental.
+  std::vector<FreeRay> rays() const;
+
   bool hasFloor() const { return has_floor_; }
   const FloorResult& floor() const { return floor_; }
   /// @brief The octree, or nullptr when octree_enabled is false.
@@ -143,6 +149,8 @@ private:
   std::vector<char> last_keep_;   // its density flags; empty when the filter did not run on it
   std::vector<std::int32_t> last_dense_of_input_;  // per point of last_input_, its index among those kept, or -1
   std::vector<Eigen::Vector3d> last_cameras_;      // the cameras of the last call, input frame
+  std::vector<Eigen::Vector3d> last_cameras_out_;  // ... in the output frame
+  std::vector<double> last_camera_h_;              // ... their heights above the floor
   // Per point kept by the last call that got through: kind, obstacle or not, camera, output-frame
   // position [m], height above the floor [m]; enough to take back its ray, candidacy and obstacle.
   std::vector<char> last_kind_;
@@ -151,7 +159,7 @@ private:
   PointList last_out_;
   std::vector<double> last_h_;
   // Scratch of process(), kept for its capacity.
-  PointList points_;
+  std::vector<std::uint32_t> kept_;
   PointList out_;
   std::vector<std::int32_t> dense_of_input_;
   std::vector<std::int32_t> dense_previous_;

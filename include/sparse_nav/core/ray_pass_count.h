@@ -95,11 +95,26 @@ public:
 private:
   struct IndexedRay
   {
+    double h;
     std::uint32_t key;  // pseudo-angle of the ray's direction, quantised
     std::int32_t bx, by;  // end cell
-    double h;
     bool deleted;
   };
+  /// A counted ray: camera, end cell (each coordinate offset by kCellOffset, x above y) and end height.
+  struct End
+  {
+    std::uint64_t camera, cell;
+    double h;
+  };
+  static constexpr int kCellOffset = 1 << 27;
+  /// A cell of the box that held candidates: from the tolerance below its lowest candidate up to
+  /// its highest (empty once they left), and the rays counted there.
+  struct CandidateCell
+  {
+    float z_lo, z_hi;
+    std::uint32_t count;
+  };
+  static constexpr std::uint32_t kNoCell = 0xffffffffu;
   struct CameraIndex
   {
     std::vector<std::uint32_t> start;  // per direction bucket (key >> kBucketShift), its first ray
@@ -133,6 +148,15 @@ private:
   bool counts(const PassRay& r) const;
   /// Widens cell k's height range to hold a candidate at height h.
   void widen(std::size_t k, double h);
+  /// The candidate cell of box cell k; nullptr when no candidate was in it since the last build().
+  CandidateCell* candidateCell(std::size_t k) { return slot_[k] == kNoCell ? nullptr : &cells_[slot_[k]]; }
+  const CandidateCell* candidateCell(std::size_t k) const { return slot_[k] == kNoCell ? nullptr : &cells_[slot_[k]]; }
+  /// Whether box cell k holds candidates now (its height range is not empty).
+  bool holdsCandidates(std::size_t k) const
+  {
+    const CandidateCell* c = candidateCell(k);
+    return c && c->z_lo <= c->z_hi;
+  }
   /// Whether the ray ends in its camera's cell: it passes nothing and is not indexed.
   bool inCameraCell(std::uint32_t camera, const IndexedRay& e) const;
   /// The block (with its margin) of cell k.
@@ -143,7 +167,12 @@ private:
   /// Whether the ray from camera cell a to end cell b visits cell k at a counted step; s is that step.
   bool visits(const Eigen::Vector2i& a, const Eigen::Vector2i& b, const Eigen::Vector2i& k, int& s) const;
   std::uint32_t recount(const Eigen::Vector2i& k) const;
-  void indexRays(const PassRaySource& rays);
+  /// The ends of the counted rays, sorted by camera and end cell: the rays from one camera to one
+  /// cell, which share their cells and differ only in height, are a run.
+  std::vector<End> sortedEnds(const PassRaySource& rays) const;
+  static Eigen::Vector2i endCell(const End& e);
+  /// Makes the index from sortedEnds().
+  void indexRays(const std::vector<End>& ends);
   IndexedRay indexed(const PassRay& ray) const;
 
   RayPassConfig config_;
@@ -155,8 +184,9 @@ private:
   std::vector<Eigen::Vector2i> camera_cell_;
   std::vector<char> camera_ok_;
   Eigen::Vector2i lo_ = Eigen::Vector2i::Zero(), size_ = Eigen::Vector2i::Zero();
-  std::vector<float> z_lo_, z_hi_;
-  std::vector<std::uint32_t> count_;
+  // Candidates occupy a tenth of the box's cells or fewer: per cell only its place among them.
+  std::vector<std::uint32_t> slot_;       // per cell of the box: its place in cells_, or kNoCell
+  std::vector<CandidateCell> cells_;
   int bw_ = 0, bh_ = 0;
   std::vector<std::uint32_t> block_cells_;  // candidate cells per block of 8 x 8
   std::vector<char> hot_;                    // a block or a neighbour holds a candidate cell

@@ -98,12 +98,12 @@ class Scene:
         self.q = q
         self.viewpoint = np.asarray(viewpoint, dtype=float)
         self.cfg = cfg
-        rel = q - self.viewpoint
-        self.radius = np.hypot(rel[:, 0], rel[:, 1])
-        self.theta = np.arctan2(rel[:, 1], rel[:, 0])
-        self.unit = rel / np.maximum(self.radius, 1e-12)[:, None]
         self.profile_cfg = notch_config(cfg, 0)
         self.profile = gapslib.surface_profile(q, self.viewpoint, self.profile_cfg)
+        rel = q - self.viewpoint
+        self.radius = self.profile.radius
+        self.theta = np.arctan2(rel[:, 1], rel[:, 0])
+        self.unit = rel / np.maximum(self.radius, 1e-12)[:, None]
         surface = self.profile.ranges[self.profile.bearing]
         self.on_surface = np.isfinite(surface) & \
             (np.abs(self.radius - surface) <= cfg.gap_jump * surface)
@@ -125,8 +125,7 @@ class Scene:
     def bearing_bin(self, p):
         """The profile bearing of point p."""
         rel = np.asarray(p, dtype=float) - self.viewpoint
-        n = len(self.profile.angles)
-        return int(np.floor((np.arctan2(rel[1], rel[0]) + np.pi) / (2 * np.pi) * n)) % n
+        return int(gapslib.bearing_bins(np.arctan2(rel[1], rel[0]), len(self.profile.angles)))
 
 
 def candidates(scene, rng):
@@ -148,8 +147,8 @@ def notches(q, profile, cfg, source):
     for left, right in gapslib.find_notches(profile, cfg):
         through = gapslib.through_mask(profile, left, right, cfg)
         out.append(Candidate(a=profile.point(left), b=profile.point(right),
-                        centre=gapslib.door_centre(profile, q, left, right, through, cfg),
-                        source=source, jambs=(left, right)))
+                             centre=gapslib.door_centre(profile, q, left, right, through, cfg),
+                             source=source, jambs=(left, right)))
     return out
 
 

@@ -79,6 +79,11 @@ class Profile:
         return self.centre + r * np.array([np.cos(self.angles[i]), np.sin(self.angles[i])])
 
 
+def bearing_bins(theta, n_bins):
+    """The bearing bin (of ``n_bins`` from -pi) of each bearing theta (rad)."""
+    return np.floor((np.asarray(theta) + np.pi) / (2 * np.pi) * n_bins).astype(int) % n_bins
+
+
 def surface_profile(q, centre, cfg, n_bins=None):
     """Step 1: the nearest dense surface in every bearing (``n_bins`` bearings, default
     ``gap_angle_bins``)."""
@@ -86,7 +91,7 @@ def surface_profile(q, centre, cfg, n_bins=None):
     rel = q - centre
     radius = np.hypot(rel[:, 0], rel[:, 1])
     theta = np.arctan2(rel[:, 1], rel[:, 0])
-    bearing = np.floor((theta + np.pi) / (2 * np.pi) * n_bins).astype(int) % n_bins
+    bearing = bearing_bins(theta, n_bins)
     angles = (np.arange(n_bins) + 0.5) * (2 * np.pi / n_bins) - np.pi
     lo, hi = np.log(cfg.gap_min_range), np.log(cfg.gap_max_range)
     n_r = max(2, int(np.ceil((hi - lo) / cfg.gap_log_bin)))

@@ -35,7 +35,7 @@ sys.path.insert(0, HERE)
 
 import bench_exit_finder as bench  # noqa: E402
 from sparse_nav.exit_finder import ExitFinderConfig, ExitFinderError, prepare  # noqa: E402
-from sparse_nav.exit_finder import finder, gaps  # noqa: E402
+from sparse_nav.exit_finder import finder  # noqa: E402
 from sparse_nav.exit_finder.ranker import PACKAGED_MODEL, DoorRanker  # noqa: E402
 
 PARAMS = {"max_iter": 300, "max_leaf_nodes": 15, "learning_rate": 0.05, "random_state": 0}
@@ -47,9 +47,7 @@ def room_examples(room, cfg):
         prep = prepare(room["points"], "-y", cfg)
     except ExitFinderError:
         return None
-    rng = np.random.default_rng(cfg.seed)
-    centre = gaps.choose_viewpoint(prep.q, cfg, rng, finder._viewpoint(prep, cfg, None))
-    _, doors, x = finder.ranked_candidates(prep, cfg, rng, centre)
+    _, doors, x = finder.ranked_candidates(prep, cfg, np.random.default_rng(cfg.seed))
     if not doors:
         return None
     centres = prep.frame.from_norm(np.array([d.centre for d in doors]))

@@ -153,10 +153,12 @@ def _gaps(prep, cfg, rng, door_gaps, viewpoint=None):
     return _Answer(exits=found.exits, corners=found.outline, reason=reason, details=found.details)
 
 
-def ranked_candidates(prep, cfg, rng, centre):
-    """The ``ranked`` method's candidates seen from ``centre`` (r.u.): (scene, doors, feature
-    matrix). The ranker's training script calls this too, so that it learns on exactly what the
-    method sees."""
+def ranked_candidates(prep, cfg, rng, centre=None):
+    """The ``ranked`` method's candidates seen from ``centre`` (r.u.; None: from where the method
+    looks first without a given viewpoint): (scene, doors, feature matrix). The ranker's training
+    script calls this too, so that it learns on exactly what the method sees."""
+    if centre is None:
+        centre = gapslib.choose_viewpoint(prep.q, cfg, rng, _viewpoint(prep, cfg, None))
     scene = doorslib.Scene(prep.q, centre, cfg)
     doors = doorslib.candidates(scene, rng)
     return scene, doors, doorslib.feature_matrix(scene, doors)

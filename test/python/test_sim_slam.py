@@ -194,6 +194,7 @@ def test_facing_a_blank_wall_loses_tracking():
     states = _states(outs)
     assert S.RECENTLY_LOST in states and S.LOST in states
     assert blank.tracking_losses == 1
+    assert blank.last_loss_cause.endswith("features in view")
     first_recent = states.index(S.RECENTLY_LOST)
     first_lost = states.index(S.LOST)
     lost_after_s = outs[first_lost].stamp_s - outs[first_recent].stamp_s
@@ -210,6 +211,7 @@ def test_fast_turn_loses_tracking_and_relocalises_in_the_same_map():
     assert sim.slam_output().state == S.OK
     fast = _drive(sim, 0.0, 1.2, 0.2)
     assert S.RECENTLY_LOST in _states(fast)
+    assert sim.last_loss_cause.startswith("turn at")
     calm = _drive(sim, 0.0, 0.0, 0.5)
     assert calm[-1].state == S.OK and calm[-1].map_id == 0
     assert sim.tracking_losses == 1
@@ -222,7 +224,7 @@ def test_force_loss_at_s():
     assert len(lost) == 1 and 2.5 <= lost[0].stamp_s < 2.5 + FRAME_S + 1e-9
     before = [o for o in outs if o.stamp_s < 2.5]
     assert before[-1].state == S.OK
-    assert sim.tracking_losses == 1
+    assert sim.tracking_losses == 1 and sim.last_loss_cause == "forced"
     after = [o for o in outs if o.stamp_s > lost[0].stamp_s]
     assert after[0].state == S.NOT_INITIALIZED and after[0].map_id == 1
 

@@ -115,6 +115,7 @@ class SimNode:
         wall_start = time.monotonic()
         sim_start = self.sim.time_s
         last_output = None
+        losses = 0
         while not rospy.is_shutdown():
             if (self.robot == "ground" and self.last_cmd_vel_s is not None
                     and self.sim.time_s - self.last_cmd_vel_s > self.cmd_vel_timeout_s):
@@ -126,6 +127,10 @@ class SimNode:
             if output is not None and output is not last_output:
                 self._publish_slam(output)
                 last_output = output
+            if self.sim.tracking_losses != losses:
+                losses = self.sim.tracking_losses
+                rospy.loginfo("sim: SLAM tracking lost (%d so far): %s", losses,
+                              self.sim.last_loss_cause)
             for command, response in self.sim.pop_drone_responses():
                 self.response_pub.publish(String(data=response))
             if self.sim.time_s >= self.next_odom_s:

@@ -280,6 +280,11 @@ class Simulator:
         """Number of times SLAM tracking was lost (OK -> RECENTLY_LOST or forced LOST)."""
         return self._slam.tracking_losses
 
+    @property
+    def last_loss_cause(self):
+        """Why SLAM tracking was last lost, in words ("" before the first loss)."""
+        return self._slam.last_loss_cause
+
     def odometry(self):
         """Wheel odometry (x, y, yaw) in the odom frame (m, rad; origin at the start pose) for
         the ground robot, None for the drone."""

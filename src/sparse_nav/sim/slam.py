@@ -177,6 +177,7 @@ class MonocularSlam:
         self._pending_losses = sorted(float(t) for t in config.force_loss_at_s)
         self._blind_until_s = -math.inf
         self.tracking_losses = 0
+        self.last_loss_cause = ""           # why tracking was last lost, in words (diagnostics)
 
     # -- ground truth -------------------------------------------------------------------------
 
@@ -237,7 +238,7 @@ class MonocularSlam:
                 return self._lost_frame(stamp_s)
             else:
                 return self._output(stamp_s, TrackingState.RECENTLY_LOST)
-        return self._track(stamp_s, T_world_camera, visible, fast_turn)
+        return self._track(stamp_s, T_world_camera, visible, fast_turn, turn_rate_rad_s)
 
     def _initialise(self, stamp_s, T_world_camera, visible, fast_turn):
         cfg = self.cfg
@@ -272,7 +273,7 @@ class MonocularSlam:
         tracked = shared
         return self._output(stamp_s, TrackingState.OK, T_world_camera, tracked)
 
-    def _track(self, stamp_s, T_world_camera, visible, fast_turn):
+    def _track(self, stamp_s, T_world_camera, visible, fast_turn, turn_rate_rad_s):
         cfg = self.cfg
         m = self.active
         centre = T_world_camera[:3, 3]
@@ -283,6 +284,8 @@ class MonocularSlam:
         self._last_centre = centre.copy()
         tracked = visible[m.has_point[visible]]
         if len(tracked) < cfg.slam_min_tracked or fast_turn:
+            self.last_loss_cause = (f"turn at {math.degrees(turn_rate_rad_s):.0f} deg/s" if fast_turn
+                                    else f"{len(tracked)} map points among {len(visible)} features in view")
             self.state = TrackingState.RECENTLY_LOST
             self._lost_since_s = stamp_s
             self.tracking_losses += 1
@@ -328,6 +331,7 @@ class MonocularSlam:
     def _enter_lost(self, stamp_s):
         if self.state == TrackingState.OK:
             self.tracking_losses += 1
+            self.last_loss_cause = "forced"
         self.state = TrackingState.LOST
         self._lost_frames = 0
         return self._lost_frame(stamp_s)

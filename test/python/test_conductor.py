@@ -385,9 +385,9 @@ def test_passing_through_near_the_outline_or_without_one_is_past_the_exit():
     assert m.conductor.phase == Phase.DONE and m.conductor.reason == "passed through the exit"
 
 
-def looking_around():
+def looking_around(config=None):
     """passing_through, then at the pass-through goal (6.5, 0) and looking around there."""
-    m = passing_through()
+    m = passing_through(config)
     actions = m.tick(robot_xy=(6.5, 0.0), navigator_state="reached")
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.CANCEL_GOAL, None),
                                                       (ActionKind.SCAN, "look_around")]
@@ -561,6 +561,39 @@ def test_tracking_lost_looking_around_outside_the_outline_is_done_else_the_last_
     m.tick()
     # The scan ended while lost: the last look decides.
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
+
+
+def partial_look(config=None, merged=False):
+    """Looking around in SLAM map 0, tracking lost, back in a new map 1 whose few seconds of
+    points wall the robot in; merged: SLAM then merges map 1 back into map 0."""
+    m = looking_around(config)
+    m.tick(slam_map_index=0, walls_around=WALLS_OUTSIDE)
+    m.tick(tracking_lost=True, walls_around=())
+    m.tick(tracking_lost=False, slam_map_index=1, walls_around=WALLS_ROOM)
+    if merged:
+        m.tick(slam_map_index=0, slam_merges=((1, 0),))
+    m.tick(scan_running=False)
+    m.tick(dt=10.0)  # past map_settle_s
+    return m
+
+
+def test_a_look_around_ending_in_a_slam_map_begun_during_it_is_out():
+    m = partial_look()
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "passed through the exit: tracking lost looking around (1 losses), and the "
+        "look ended in SLAM map 1, begun since, not in map 0: too little around to track, out")
+
+
+def test_a_look_around_whose_new_map_merged_back_is_judged_by_its_openings():
+    m = partial_look(merged=True)
+    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
+    assert "(1 losses, the look in one SLAM map)" in m.conductor.reason
+
+
+def test_a_partial_look_is_judged_by_its_openings_when_so_configured():
+    m = partial_look(ConductorConfig(wall_scan_enabled=False, partial_look_means_out=False))
+    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
+    assert "(1 losses, the look partly in a new SLAM map)" in m.conductor.reason
 
 
 def test_tracking_lost_past_the_exit_and_never_back_is_done_inside_the_outline_gave_up():

@@ -156,6 +156,11 @@ class ConductorConfig:
                                          # door's wall: another room however wide the openings
                                          # (a partition's door; a blank wall ahead); less, or no
                                          # outline to measure them on: the openings decide
+    partial_look_means_out: bool = True  # a look around that lost tracking and ended in a
+                                         # SLAM map begun during it (no merge back) judges
+                                         # its openings on a few seconds of map: out (done)
+                                         # instead; beyond a door a camera loses tracking
+                                         # in open space, and rarely in a room
 
     def validate(self):
         for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts",
@@ -276,6 +281,9 @@ class Conductor:
         self._outside_by = 0.0
         # (walls_around, side_walls_beyond_m) of the newest look around while tracking
         self._last_look = ((), None)
+        # The SLAM map the look around began in (merges followed), and its losses so far.
+        self._look_map: Optional[int] = None
+        self._look_losses = 0
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
@@ -336,6 +344,8 @@ class Conductor:
                 self._outside_by = distance_outside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.LOOK_AROUND and len(obs.walls_around):
                 self._last_look = (tuple(obs.walls_around), obs.side_walls_beyond_m)
+            if self.phase == Phase.LOOK_AROUND and self._look_map is None:
+                self._look_map = obs.slam_map_index
         if self.phase == Phase.FIND_EXIT and obs.exit_answered:
             # Seen once: an answer that arrives while lost or recovering is acted on after.
             self._exit_answer = (obs.exit_xy, tuple(obs.exit_alternatives), obs.exit_leads_out)
@@ -410,6 +420,8 @@ class Conductor:
                 if self.state != State.RECOVER:  # RECOVER resumes the state it interrupted
                     self._resume_state = self.state
                 self._count_goal_loss()
+                if self.phase == Phase.LOOK_AROUND:
+                    self._look_losses += 1
                 if self.state == State.START and obs.scan_running:
                     # The scan's retry mechanism undoes and redoes steps until tracking is back.
                     self._set(t, State.LOST, self.phase, "SLAM tracking lost: the scan retries")
@@ -493,6 +505,8 @@ class Conductor:
         for old, new in obs.slam_merges[self._merges_applied:]:
             if self._alternatives_map == old:
                 self._alternatives_map = new
+            if self._look_map == old:
+                self._look_map = new
             if old in self._scan_tracked_s:
                 self._scan_tracked_s[new] = (self._scan_tracked_s.get(new, 0.0)
                                              + self._scan_tracked_s.pop(old))
@@ -633,6 +647,7 @@ class Conductor:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         self._last_look = ((), None)
+        self._look_map, self._look_losses = None, 0
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
@@ -649,8 +664,19 @@ class Conductor:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit (no map to look "
                                                  "around in)")
             return [Action(ActionKind.STOP)]
+        partial = (self._look_losses > 0 and None not in (self._look_map, obs.slam_map_index)
+                   and obs.slam_map_index != self._look_map)
+        if partial and cfg.partial_look_means_out:
+            self._set(t, State.IDLE, Phase.DONE,
+                      f"passed through the exit: tracking lost looking around ({self._look_losses} "
+                      f"losses), and the look ended in SLAM map {obs.slam_map_index}, begun since, "
+                      f"not in map {self._look_map}: too little around to track, out")
+            return [Action(ActionKind.STOP)]
         opening = self._widest_opening(walls)
         seen = f"openings up to {opening:.0f} deg wide"
+        if self._look_losses:
+            seen += (f" ({self._look_losses} losses, the look "
+                     f"{'partly in a new SLAM map' if partial else 'in one SLAM map'})")
         wide = opening > cfg.room_max_opening_deg
         walled_beside = side_m is not None and side_m >= cfg.room_side_walls_min_m
         if side_m is None:

@@ -587,13 +587,30 @@ def test_a_look_around_ending_in_a_slam_map_begun_during_it_is_out():
 def test_a_look_around_whose_new_map_merged_back_is_judged_by_its_openings():
     m = partial_look(merged=True)
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
-    assert "(1 losses, the look in one SLAM map)" in m.conductor.reason
+    assert "; 1 tracking losses looking around, the look in one SLAM map" in m.conductor.reason
 
 
 def test_a_partial_look_is_judged_by_its_openings_when_so_configured():
     m = partial_look(ConductorConfig(wall_scan_enabled=False, partial_look_means_out=False))
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
-    assert "(1 losses, the look partly in a new SLAM map)" in m.conductor.reason
+    assert "; 1 tracking losses looking around, the look partly in a new SLAM map" in \
+        m.conductor.reason
+
+
+# 72 bearings, walls all round but for 8 in a row (40 deg) away from the door (at 180 deg).
+WALLS_40_DEG_OPENING = (False,) * 8 + (True,) * 64
+
+
+@pytest.mark.parametrize("losses, phase", [(2, Phase.FIND_EXIT), (3, Phase.DONE)])
+def test_a_look_around_that_often_lost_tracking_takes_a_40_deg_opening_for_out(losses, phase):
+    m = looking_around()
+    for _ in range(losses):
+        m.tick(tracking_lost=True, walls_around=())
+        m.tick(tracking_lost=False, walls_around=WALLS_40_DEG_OPENING)
+    m.tick(scan_running=False)
+    assert m.conductor.phase == phase
+    assert "openings up to 40 deg wide" in m.conductor.reason
+    assert f"{losses} tracking losses looking around" in m.conductor.reason
 
 
 def test_tracking_lost_past_the_exit_and_never_back_is_done_inside_the_outline_gave_up():

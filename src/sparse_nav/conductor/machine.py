@@ -156,6 +156,9 @@ class ConductorConfig:
                                          # door's wall: another room however wide the openings
                                          # (a partition's door; a blank wall ahead); less, or no
                                          # outline to measure them on: the openings decide
+    lossy_look_min_losses: int = 3       # a look around that lost tracking this often judges
+    lossy_look_max_opening_deg: float = 37.5  # ... its openings by this limit instead of
+                                         # room_max_opening_deg: a 40-deg opening is out
     partial_look_means_out: bool = True  # a look around that lost tracking and ended in a
                                          # SLAM map begun during it (no merge back) judges
                                          # its openings on a few seconds of map: out (done)
@@ -164,7 +167,8 @@ class ConductorConfig:
 
     def validate(self):
         for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts",
-                     "max_goal_failures", "max_goal_losses", "max_rooms", "max_rescans"):
+                     "max_goal_failures", "max_goal_losses", "max_rooms", "max_rescans",
+                     "lossy_look_min_losses"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
@@ -187,6 +191,9 @@ class ConductorConfig:
         if not 0 < self.room_max_opening_deg < 360:
             raise ValueError(f"room_max_opening_deg must be in (0, 360), got "
                              f"{self.room_max_opening_deg}")
+        if not 0 < self.lossy_look_max_opening_deg <= self.room_max_opening_deg:
+            raise ValueError(f"lossy_look_max_opening_deg must be in (0, room_max_opening_deg], "
+                             f"got {self.lossy_look_max_opening_deg}")
         if not (math.isfinite(self.pass_through_m) and self.pass_through_m >= 0):
             raise ValueError(f"pass_through_m must be finite and >= 0, got {self.pass_through_m}")
 
@@ -674,10 +681,9 @@ class Conductor:
             return [Action(ActionKind.STOP)]
         opening = self._widest_opening(walls)
         seen = f"openings up to {opening:.0f} deg wide"
-        if self._look_losses:
-            seen += (f" ({self._look_losses} losses, the look "
-                     f"{'partly in a new SLAM map' if partial else 'in one SLAM map'})")
-        wide = opening > cfg.room_max_opening_deg
+        # A camera facing open space loses tracking; one facing a room's walls rarely does.
+        lossy = self._look_losses >= cfg.lossy_look_min_losses
+        wide = opening > (cfg.lossy_look_max_opening_deg if lossy else cfg.room_max_opening_deg)
         walled_beside = side_m is not None and side_m >= cfg.room_side_walls_min_m
         if side_m is None:
             side = "no room outline to measure the room's side walls on"
@@ -685,6 +691,9 @@ class Conductor:
             side = f"the room's side walls go on {side_m:.1f} m past the door's wall"
         else:
             side = f"the room's side walls end at the door's wall ({side_m:.1f} m past it)"
+        if self._look_losses:
+            side += (f"; {self._look_losses} tracking losses looking around, the look "
+                     f"{'partly in a new SLAM map' if partial else 'in one SLAM map'}")
         if not walled_beside and wide:
             self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
                                                  f"{side}")

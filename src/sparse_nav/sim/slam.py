@@ -284,8 +284,9 @@ class MonocularSlam:
         self._last_centre = centre.copy()
         tracked = visible[m.has_point[visible]]
         if len(tracked) < cfg.slam_min_tracked or fast_turn:
-            self.last_loss_cause = (f"turn at {math.degrees(turn_rate_rad_s):.0f} deg/s" if fast_turn
-                                    else f"{len(tracked)} map points among {len(visible)} features in view")
+            self.last_loss_cause = (
+                f"turn at {math.degrees(turn_rate_rad_s):.0f} deg/s" if fast_turn
+                else f"{len(tracked)} map points among {len(visible)} features in view")
             self.state = TrackingState.RECENTLY_LOST
             self._lost_since_s = stamp_s
             self.tracking_losses += 1

@@ -288,9 +288,7 @@ class Conductor:
         self._outside_by = 0.0
         # (walls_around, side_walls_beyond_m) of the newest look around while tracking
         self._last_look = ((), None)
-        # The SLAM map the look around began in (merges followed), and its losses so far.
-        self._look_map: Optional[int] = None
-        self._look_losses = 0
+        self._look_losses = 0  # tracking losses of the present look around
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
@@ -351,8 +349,6 @@ class Conductor:
                 self._outside_by = distance_outside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.LOOK_AROUND and len(obs.walls_around):
                 self._last_look = (tuple(obs.walls_around), obs.side_walls_beyond_m)
-            if self.phase == Phase.LOOK_AROUND and self._look_map is None:
-                self._look_map = obs.slam_map_index
         if self.phase == Phase.FIND_EXIT and obs.exit_answered:
             # Seen once: an answer that arrives while lost or recovering is acted on after.
             self._exit_answer = (obs.exit_xy, tuple(obs.exit_alternatives), obs.exit_leads_out)
@@ -512,12 +508,16 @@ class Conductor:
         for old, new in obs.slam_merges[self._merges_applied:]:
             if self._alternatives_map == old:
                 self._alternatives_map = new
-            if self._look_map == old:
-                self._look_map = new
             if old in self._scan_tracked_s:
                 self._scan_tracked_s[new] = (self._scan_tracked_s.get(new, 0.0)
                                              + self._scan_tracked_s.pop(old))
         self._merges_applied = len(obs.slam_merges)
+
+    def _scan_map_share(self, obs):
+        """Share of the running phase scan's tracked time that the SLAM map tracked now holds
+        (maps merged into it count); 1 before any."""
+        tracked = sum(self._scan_tracked_s.values())
+        return self._scan_tracked_s.get(obs.slam_map_index, 0.0) / tracked if tracked else 1.0
 
     def _goal_in_another_map(self, obs):
         """Tracking is back on the way to or through an exit, but in another SLAM map than the
@@ -600,9 +600,7 @@ class Conductor:
             # grid) of the part of the room scanned since: when that part is small, scan the
             # whole room again in it while rounds are left; so does a scan cut short by a loss.
             rounds_left = self._scan_rounds < cfg.max_scan_rounds
-            tracked = sum(self._scan_tracked_s.values())
-            share = self._scan_tracked_s.get(obs.slam_map_index, 0.0) / tracked if tracked else 1.0
-            map_changed = share < cfg.scan_map_min_share and rounds_left
+            map_changed = self._scan_map_share(obs) < cfg.scan_map_min_share and rounds_left
             cut = cut and rounds_left
             if obs.map_ready and not obs.scan_failed and not map_changed and not cut:
                 if cfg.wall_scan_enabled:
@@ -654,7 +652,7 @@ class Conductor:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         self._last_look = ((), None)
-        self._look_map, self._look_losses = None, 0
+        self._look_losses = 0
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
@@ -671,13 +669,14 @@ class Conductor:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit (no map to look "
                                                  "around in)")
             return [Action(ActionKind.STOP)]
-        partial = (self._look_losses > 0 and None not in (self._look_map, obs.slam_map_index)
-                   and obs.slam_map_index != self._look_map)
+        # Part of the look tracked in a map it did not end in: a new one, never merged back.
+        partial = self._look_losses > 0 and self._scan_map_share(obs) < 1.0
         if partial and cfg.partial_look_means_out:
+            most = max(self._scan_tracked_s, key=self._scan_tracked_s.get)
             self._set(t, State.IDLE, Phase.DONE,
                       f"passed through the exit: tracking lost looking around ({self._look_losses} "
                       f"losses), and the look ended in SLAM map {obs.slam_map_index}, begun since, "
-                      f"not in map {self._look_map}: too little around to track, out")
+                      f"not in map {most}: too little around to track, out")
             return [Action(ActionKind.STOP)]
         opening = self._widest_opening(walls)
         seen = f"openings up to {opening:.0f} deg wide"

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Train the exit finder's door ranker (the ``ranked`` method) on simulator rooms.
 
-The rooms are ``random_world(seed)`` for the training seeds (default 400-3399), scanned exactly
+The rooms are ``random_world(seed)`` for the training seeds (default 400-5399), scanned exactly
 as ``bench_exit_finder.py`` scans its rooms 0-399 (same scan cache), so that the benchmark scores
 the model only on rooms it never saw. Per room the finder's own candidate code
 (``finder.ranked_candidates``, from the SLAM map's origin as the ``ranked`` method sees it) gives
@@ -15,7 +15,7 @@ out 10 % of the candidates) is fitted on all candidates and written as plain JSO
 JSON model gives scikit-learn's own probabilities on every candidate and refuses to write it
 otherwise. Deterministic for the same rooms and versions.
 
-Usage: bench/train_door_ranker.py [--seeds 400-3399] [--cache DIR] [--jobs J] [--out FILE]
+Usage: bench/train_door_ranker.py [--seeds 400-5399] [--cache DIR] [--jobs J] [--out FILE]
 Default output: src/sparse_nav/exit_finder/door_ranker.json (the model the package ships).
 """
 import argparse
@@ -38,7 +38,7 @@ from sparse_nav.exit_finder import ExitFinderConfig, ExitFinderError, prepare  #
 from sparse_nav.exit_finder import finder  # noqa: E402
 from sparse_nav.exit_finder.ranker import PACKAGED_MODEL, DoorRanker  # noqa: E402
 
-PARAMS = {"max_iter": 300, "max_leaf_nodes": 15, "learning_rate": 0.05, "random_state": 0}
+PARAMS = {"max_iter": 300, "max_leaf_nodes": 127, "learning_rate": 0.05, "random_state": 0}
 
 
 def room_examples(room, cfg):
@@ -115,7 +115,7 @@ def main(argv=None):
     from sklearn.ensemble import HistGradientBoostingClassifier
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--seeds", default="400-3399", help="training seeds, FIRST-LAST")
+    parser.add_argument("--seeds", default="400-5399", help="training seeds, FIRST-LAST")
     parser.add_argument("--cache", default=None, help="scan cache (bench_exit_finder's)")
     parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     parser.add_argument("--out", default=PACKAGED_MODEL)

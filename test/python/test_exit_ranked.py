@@ -110,6 +110,39 @@ def test_features_are_finite_named_and_independent_of_scale_heading_and_position
     np.testing.assert_allclose(f1, f2, atol=0.05)
 
 
+def test_an_inner_door_has_the_map_beyond_it_and_an_outer_door_has_not():
+    # Two rooms side by side in [-3, 3] x [-2, 2], a partition at x = 1 with a door at y = 0,
+    # an exit in the bottom wall at x = -1; seen from (-1, 0.5) in the first room.
+    rng = np.random.default_rng(2)
+
+    def wall(a, b, n, gap=None):
+        t = rng.uniform(0.0, 1.0, n)
+        p = np.asarray(a, float) + t[:, None] * (np.asarray(b, float) - a)
+        return p if gap is None else p[np.hypot(*(p - gap).T) > 0.5]
+
+    xy = np.vstack([wall((-3, -2), (3, -2), 720, gap=(-1.0, -2.0)), wall((3, -2), (3, 2), 480),
+                    wall((3, 2), (-3, 2), 720), wall((-3, 2), (-3, -2), 480),
+                    wall((1, -2), (1, 2), 480, gap=(1.0, 0.0))])
+    view = (-1.0, 0.5)
+    prep, scene = scene_of(xy, view)
+
+    def candidate(a, b):
+        a, b = (prep.frame.to_norm(np.array([p], float))[0] for p in (a, b))
+        return doorslib.Candidate(a=a, b=b, centre=0.5 * (a + b), source="wall_gap")
+
+    names = list(doorslib.FEATURE_NAMES)
+    exit_f = dict(zip(names, doorslib.features(scene, candidate((-1.5, -2.0), (-0.5, -2.0)))))
+    inner_f = dict(zip(names, doorslib.features(scene, candidate((1.0, -0.5), (1.0, 0.5)))))
+    # A third of the walls' points lie past the partition; none past the outer wall.
+    assert exit_f["beyond_share"] < 0.02 and 0.2 < inner_f["beyond_share"] < 0.5
+    assert exit_f["beyond_surface_share"] < 0.02 and inner_f["beyond_surface_share"] > 0.1
+    assert exit_f["beyond_near_share"] < 0.02 and inner_f["beyond_near_share"] > 0.2
+    # The second room's far wall is 2 m past the partition, the door 2.06 m from the viewpoint.
+    assert exit_f["beyond_extent"] == 0.0 and 0.9 < inner_f["beyond_extent"] < 1.0
+    # The exit lies on the cloud's convex hull, the inner door well inside it.
+    assert exit_f["hull_depth"] < 0.05 and inner_f["hull_depth"] > 0.3
+
+
 def test_wall_gaps_find_a_door_seen_almost_edge_on():
     # A long wall at y = 2 with a 1 m door at x = 6, seen from (0, 0): 18 degrees off the wall.
     rng = np.random.default_rng(9)

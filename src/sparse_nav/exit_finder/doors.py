@@ -14,7 +14,9 @@ candidates are the union of
 
 A candidate is a segment ``a``-``b`` across the opening and a centre on it. :func:`features`
 describes it by what is seen through it, its width and range against the room's, how straight
-the walls on both sides run past it, and what stands in front of it or behind its jambs, all
+the walls on both sides run past it, what stands in front of it or behind its jambs, and how
+much of the map lies past the wall line it is in (little past an outer wall's door, a whole room
+past an inner door or a box's side) and how deep inside the cloud's convex hull it is, all
 in cloud radii, ratios or angles, so that the description does not depend on the monocular
 map's scale, position or heading; counts of points are divided by the *wall density*, the median
 number of points on the surface per degree of bearing, so that it does not depend on how many
@@ -24,6 +26,7 @@ import dataclasses
 import warnings
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from sparse_nav.exit_finder import gaps as gapslib
 from sparse_nav.exit_finder import geometry as geo
@@ -40,6 +43,9 @@ WALL_EVAL_POINTS = 3000         # hypotheses are counted on at most this many po
 WALL_SIDE = 0.1                 # r.u.: a gap needs WALL_SIDE_POINTS wall points this close on
 WALL_SIDE_POINTS = 5            # each side (a wall goes on past it, not a stray point)
 WIDE_BEARINGS = (5, 15)         # half-windows (bearings) of the walls' median range around a door
+BEYOND_MARGIN = 0.05            # share of the door's range: a point this far past its line is beyond
+BEYOND_NEAR_WIDTHS = 2.0        # beyond_near_share counts points this many widths past either jamb
+BEYOND_EXTENT_MIN_POINTS = 5    # beyond_extent needs this many points beyond the line (else 0)
 SOURCES = tuple(p[0] for p in NOTCH_PROFILES) + ("wall_gap",)
 
 FEATURE_NAMES = (
@@ -64,6 +70,11 @@ FEATURE_NAMES = (
     "in_cone_log",          # log(1 + points in the opening's bearings / wall density)
     "range_vs_walls_5",     # log(door range / median wall range within 5 bearings)
     "range_vs_walls_15",    # ... within 15 bearings
+    "beyond_share",         # share of the cloud beyond the opening's line, away from the viewpoint
+    "beyond_surface_share",  # share of the surface's bearings beyond that line
+    "beyond_near_share",    # beyond_share of the points within two widths of the opening along it
+    "beyond_extent",        # 90 % distance past the line of the points beyond it / door range
+    "hull_depth",           # distance from the centre to the cloud's convex hull / median range
 ) + tuple(f"source_{s}" for s in SOURCES) + (
     "through_vs_best",      # through_log less the largest through_log of the room's candidates
 )
@@ -115,6 +126,13 @@ class Scene:
         known = np.isfinite(ranges)
         median = float(np.median(per_bearing[known])) if np.any(known) else 1.0
         self.wall_density = max(median * n / 360.0, 1e-3)
+        finite = np.isfinite(ranges)
+        self.surface_points = self.viewpoint + ranges[finite, None] * np.column_stack(
+            [np.cos(self.profile.angles[finite]), np.sin(self.profile.angles[finite])])
+        try:
+            self.hull_equations = ConvexHull(q).equations
+        except QhullError:          # collinear or too few points: no depth to measure
+            self.hull_equations = None
         self.wall_range = {}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)   # all-NaN windows stay NaN
@@ -261,14 +279,44 @@ def features(scene, door):
         wall = scene.wall_range[half][centre_bin]
         vs_walls.append(float(np.log(door_range / wall)) if np.isfinite(wall) else 0.0)
     source = [float(door.source == s) for s in SOURCES]
+    past_line = _beyond(scene, a, b, width, door_range)
     density = scene.wall_density
     return np.array([np.log1p(n_through / density), coverage, spread, width_log, width_log ** 2,
                      np.log(door_range / scene.median_range), span / (2 * np.pi), depth, beyond,
                      incidence, jamb_angle, jamb_offset, jamb_scatter, occluded_left,
                      occluded_right, np.count_nonzero(in_front) / max(n_cone, 1), through_range,
                      np.log1p(n_through / n_bins / density), np.log1p(n_cone / density)] +
-                    vs_walls + source,
+                    vs_walls + past_line + [_hull_depth(scene, centre)] + source,
                     dtype=float)
+
+
+def _beyond(scene, a, b, width, door_range):
+    """What lies past the line through the opening, on the side away from the viewpoint:
+    [beyond_share, beyond_surface_share, beyond_near_share, beyond_extent]
+    (:data:`FEATURE_NAMES`)."""
+    along = (b - a) / max(width, 1e-9)
+    normal = np.array([-along[1], along[0]])
+    if np.dot(scene.viewpoint - a, normal) > 0:
+        normal = -normal
+    margin = BEYOND_MARGIN * door_range
+    past = (scene.q - a) @ normal
+    beyond = past > margin
+    t = (scene.q - a) @ along
+    near = (t > -BEYOND_NEAR_WIDTHS * width) & (t < (1.0 + BEYOND_NEAR_WIDTHS) * width)
+    surface = (scene.surface_points - a) @ normal > margin
+    extent = float(np.quantile(past[beyond], 0.9)) / door_range \
+        if np.count_nonzero(beyond) >= BEYOND_EXTENT_MIN_POINTS else 0.0
+    return [float(np.mean(beyond)), float(np.mean(surface)) if len(surface) else 0.0,
+            float(np.mean(beyond[near])) if np.any(near) else 0.0, extent]
+
+
+def _hull_depth(scene, p):
+    """Distance from point p to the boundary of the cloud's convex hull / the median wall
+    range (0 outside it or without a hull)."""
+    if scene.hull_equations is None:
+        return 0.0
+    eq = scene.hull_equations
+    return max(0.0, -float(np.max(eq[:, :2] @ p + eq[:, 2]))) / scene.median_range
 
 
 def _jambs(scene, a, b, start, end, span, door_range):

@@ -102,8 +102,9 @@ def notch_config(cfg, profile_index):
 class Scene:
     """The cloud seen from the viewpoint: the polar coordinates of every point, the walls'
     surface profile (:func:`~sparse_nav.exit_finder.gaps.surface_profile` at the first
-    detector's bearings, :func:`notch_config`), the median wall range around each bearing and
-    the wall density (points on the surface per degree), computed once for every candidate."""
+    detector's bearings, :func:`notch_config`) and its points, the median wall range around each
+    bearing, the wall density (points on the surface per degree) and the cloud's convex hull,
+    computed once for every candidate."""
 
     def __init__(self, q, viewpoint, cfg):
         self.q = q
@@ -126,9 +127,8 @@ class Scene:
         known = np.isfinite(ranges)
         median = float(np.median(per_bearing[known])) if np.any(known) else 1.0
         self.wall_density = max(median * n / 360.0, 1e-3)
-        finite = np.isfinite(ranges)
-        self.surface_points = self.viewpoint + ranges[finite, None] * np.column_stack(
-            [np.cos(self.profile.angles[finite]), np.sin(self.profile.angles[finite])])
+        self.surface_points = self.viewpoint + ranges[known, None] * np.column_stack(
+            [np.cos(self.profile.angles[known]), np.sin(self.profile.angles[known])])
         try:
             self.hull_equations = ConvexHull(q).equations
         except QhullError:          # collinear or too few points: no depth to measure

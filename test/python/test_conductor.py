@@ -584,6 +584,18 @@ def test_a_look_around_ending_in_a_slam_map_begun_during_it_is_out():
         "look ended in SLAM map 1, begun since, not in map 0: too little around to track, out")
 
 
+def test_a_partial_look_names_the_map_it_began_in_even_when_the_new_one_holds_more_of_it():
+    m = looking_around()
+    m.tick(slam_map_index=0, walls_around=WALLS_OUTSIDE)
+    m.tick(tracking_lost=True, walls_around=())
+    for _ in range(5):
+        m.tick(tracking_lost=False, slam_map_index=1, walls_around=WALLS_ROOM)
+    m.tick(scan_running=False)
+    m.tick(dt=10.0)
+    assert m.conductor.phase == Phase.DONE
+    assert "look ended in SLAM map 1, begun since, not in map 0:" in m.conductor.reason
+
+
 def test_a_look_around_whose_new_map_merged_back_is_judged_by_its_openings():
     m = partial_look(merged=True)
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)

@@ -672,11 +672,11 @@ class Conductor:
         # Part of the look tracked in a map it did not end in: a new one, never merged back.
         partial = self._look_losses > 0 and self._scan_map_share(obs) < 1.0
         if partial and cfg.partial_look_means_out:
-            most = max(self._scan_tracked_s, key=self._scan_tracked_s.get)
+            before = ", ".join(str(k) for k in self._scan_tracked_s if k != obs.slam_map_index)
             self._set(t, State.IDLE, Phase.DONE,
                       f"passed through the exit: tracking lost looking around ({self._look_losses} "
                       f"losses), and the look ended in SLAM map {obs.slam_map_index}, begun since, "
-                      f"not in map {most}: too little around to track, out")
+                      f"not in map {before}: too little around to track, out")
             return [Action(ActionKind.STOP)]
         opening = self._widest_opening(walls)
         seen = f"openings up to {opening:.0f} deg wide"

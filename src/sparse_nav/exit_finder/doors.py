@@ -127,11 +127,10 @@ class Scene:
         known = np.isfinite(ranges)
         median = float(np.median(per_bearing[known])) if np.any(known) else 1.0
         self.wall_density = max(median * n / 360.0, 1e-3)
-        self.surface_points = self.viewpoint + ranges[known, None] * np.column_stack(
-            [np.cos(self.profile.angles[known]), np.sin(self.profile.angles[known])])
+        self.surface_points = self.profile.points()[known]
         try:
             self.hull_equations = ConvexHull(q).equations
-        except QhullError:          # collinear or too few points: no depth to measure
+        except (QhullError, ValueError):    # no area (as geo.convex_hull): no depth to measure
             self.hull_equations = None
         self.wall_range = {}
         with warnings.catch_warnings():

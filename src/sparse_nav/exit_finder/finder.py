@@ -204,8 +204,7 @@ def _ranked(prep, cfg, rng, door_gaps, viewpoint=None):
     outline = gapslib.outline_from_profile(scene.profile, notches, scene.profile_cfg)
     if outline is None:
         outline = geo.convex_hull(prep.q)
-    details = {"profile": np.array([scene.profile.point(i)
-                                    for i in range(len(scene.profile.angles))])}
+    details = {"profile": scene.profile.points()}
     if best is not None:
         details["line_points"] = doorslib.jamb_points(scene, best)
     return _Answer(exits=exits, corners=outline, reason=reason, details=details)

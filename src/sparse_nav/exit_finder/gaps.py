@@ -78,6 +78,11 @@ class Profile:
         r = self.ranges[i] if r is None else r
         return self.centre + r * np.array([np.cos(self.angles[i]), np.sin(self.angles[i])])
 
+    def points(self):
+        """(B, 2) surface point of every bearing, NaN where unknown."""
+        return self.centre + self.ranges[:, None] * np.column_stack(
+            [np.cos(self.angles), np.sin(self.angles)])
+
 
 def bearing_bins(theta, n_bins):
     """The bearing bin (of ``n_bins`` from -pi) of each bearing theta (rad)."""
@@ -431,7 +436,7 @@ def find_gaps(q, cfg, rng=None, external=None, viewpoint=None):
     if outline is None:
         outline = geo.convex_hull(q)
     exits = [(float(c[0][0]), float(c[0][1]), float(c[1])) for c in cands]
-    details = {"profile": np.array([profile.point(i) for i in range(len(profile.angles))])}
+    details = {"profile": profile.points()}
     if cands:
         details["line_points"] = _jamb_wall_points(q, profile, cands[0], cfg)
     return GapResult(exits=exits, outline=outline, details=details)

@@ -240,6 +240,10 @@ class NavigatorNode:
 
     def _publish(self, status):
         stamp = rospy.Time.now()
+        if stamp.is_zero():
+            # Simulated time before the first /clock: a zero stamp means "no time" to consumers;
+            # the next step, with the clock running, publishes this status.
+            return
         path = Path()
         path.header.frame_id = self.map_frame
         path.header.stamp = stamp

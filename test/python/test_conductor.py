@@ -2,8 +2,9 @@
 import numpy as np
 import pytest
 
-from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, Phase,
-                                  ScanRunner, ScanRunnerConfig, State, take_off)
+from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, ExitRequest,
+                                  Observation, Phase, ScanRunner, ScanRunnerConfig, State,
+                                  take_off)
 from sparse_nav.scanning import Step
 
 
@@ -149,10 +150,13 @@ def test_a_scan_ending_in_a_new_slam_map_that_merges_into_the_scans_goes_on():
 def test_no_exit_scans_more_then_gives_up():
     m = Mission(ConductorConfig(wall_scan_enabled=False, max_exit_attempts=2))
     m.tick(start_requested=True)
-    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
+    assert [(a.kind, a.payload) for a in m.run_scan()] == [(ActionKind.FIND_EXIT,
+                                                            ExitRequest(None, False))]
     actions = m.tick(exit_answered=True, exit_xy=None)
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
-    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
+    # The last attempt asks for any candidate, however unlikely; none at all gives up.
+    assert [(a.kind, a.payload) for a in m.run_scan()] == [(ActionKind.FIND_EXIT,
+                                                            ExitRequest(None, True))]
     m.tick(exit_answered=True, exit_xy=None)
     assert m.conductor.phase == Phase.GAVE_UP
     assert "no exit in the map after 2 attempts" in m.conductor.reason
@@ -399,7 +403,8 @@ def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_
     m = looking_around()
     # The one bearing without a wall (330 deg) is not toward the door come through (180 deg).
     actions = m.tick(scan_running=False, walls_around=WALLS_ROOM, side_walls_beyond_m=1.5)
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.FIND_EXIT, "robot")]
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.FIND_EXIT,
+                                                       ExitRequest("robot", False))]
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
     assert ("another room beyond the exit (openings up to 30 deg wide, the room's side walls "
             "go on 1.5 m past the door's wall)") in m.conductor.reason
@@ -729,7 +734,7 @@ def test_a_scan_stopped_for_relocalising_goes_on_where_it_was_cut():
         m.tick(scan_running=True, scan_resumable=False)
     # Resumed, the scan is still the one begun in map 0: it ends, and the map is the room's.
     actions = m.tick(dt=6.0, scan_running=False, map_ready=True)
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.FIND_EXIT, None)]
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.FIND_EXIT, ExitRequest())]
     # A third cut is one too many: judged cut short, the initial scan is done again.
     m2 = Mission(ConductorConfig(max_scan_resumes=1))
     m2.tick(start_requested=True)
@@ -789,8 +794,8 @@ def test_the_map_a_scan_ends_in_counts_the_time_of_the_maps_merged_into_it():
 
 
 def test_a_scan_that_ran_all_its_steps_while_lost_is_judged_as_any_ended_scan():
-    for new_map, expected in ((False, (ActionKind.FIND_EXIT, None)), (True, (ActionKind.SCAN,
-                                                                             "random"))):
+    for new_map, expected in ((False, (ActionKind.FIND_EXIT, ExitRequest())),
+                              (True, (ActionKind.SCAN, "random"))):
         m = Mission()
         m.tick(start_requested=True)
         m.tick(scan_running=True, slam_map_index=0)

@@ -51,7 +51,7 @@ class Phase(enum.Enum):
 class ActionKind(enum.Enum):
     SCAN = "scan"            # payload: scan name ("initial", "wall", "random", "relocalise",
                              # "look_around"; "resume": go on with the scan a loss cut)
-    FIND_EXIT = "find_exit"  # ask the exit finder; payload: its viewpoint (None: its default)
+    FIND_EXIT = "find_exit"  # ask the exit finder; payload: an ExitRequest
     GOAL = "goal"            # payload: (x, y) in the map frame
     CANCEL_GOAL = "cancel_goal"
     STOP = "stop"            # zero velocity / no further drone command
@@ -62,6 +62,14 @@ class ActionKind(enum.Enum):
 class Action:
     kind: ActionKind
     payload: object = None
+
+
+@dataclasses.dataclass(frozen=True)
+class ExitRequest:
+    viewpoint: object = None  # the finder's viewpoint name (None: its default)
+    # The last attempt before giving up: the finder reports candidates however unlikely it rates
+    # them, since driving to a doubtful exit beats giving up in a room with one.
+    last_attempt: bool = False
 
 
 @dataclasses.dataclass
@@ -630,7 +638,10 @@ class Conductor:
         self._exit_requested_s = t
         self._exit_answer = self._exit_paused_s = None
         self._set(t, State.IDLE, Phase.FIND_EXIT, why)
-        return [Action(ActionKind.FIND_EXIT, self._exit_viewpoint)]
+        # Not in a room come into: there no exit but the door come through is an answer too.
+        last = (self._exit_attempts >= self.config.max_exit_attempts
+                and not self._room_unconfirmed)
+        return [Action(ActionKind.FIND_EXIT, ExitRequest(self._exit_viewpoint, last))]
 
     @property
     def door_xy(self):

@@ -266,7 +266,7 @@ class ConductorNode:
             self.scan_stop.set()
             self.scan_thread.join(timeout=60.0)
 
-    def _ask_exit(self, viewpoint=None):
+    def _ask_exit(self, request):
         def call():
             answer, alternatives, leads_out, outline = None, (), True, ()
             with self.lock:
@@ -274,7 +274,8 @@ class ConductorNode:
             try:
                 rospy.wait_for_service(self.exit_service, timeout=10.0)
                 response = rospy.ServiceProxy(self.exit_service, FindExit)(
-                    method="", viewpoint=viewpoint or "")
+                    method="", viewpoint=request.viewpoint or "",
+                    any_probability=request.last_attempt)
                 if response.success and response.candidates.exits:
                     ranked = [(p.x, p.y) for p in response.candidates.exits]
                     cfg = self.config

@@ -167,13 +167,13 @@ class ExitFinderNode:
                    f"unknown viewpoint {viewpoint!r}; choose one of {', '.join(VIEWPOINTS)}")
             cand = self._candidates(ExitCandidates.STATUS_BAD_INPUT, why, rospy.Time.now())
             return FindExitResponse(success=False, candidates=cand)
-        cand = self.run(method, viewpoint)
+        cand = self.run(method, viewpoint, any_probability=req.any_probability)
         return FindExitResponse(success=cand.status == ExitCandidates.STATUS_OK,
                                 candidates=cand)
 
-    def run(self, method, viewpoint):
+    def run(self, method, viewpoint, any_probability=False):
         """Runs the finder on the latest cloud from viewpoint (one of VIEWPOINTS), publishes
-        and returns the ExitCandidates."""
+        and returns the ExitCandidates; any_probability: rank_min_probability not applied."""
         with self.run_lock:
             with self.lock:
                 points, stamp, seq = self.points, self.stamp, self.cloud_seq
@@ -183,7 +183,7 @@ class ExitFinderNode:
                 cand = self._candidates(ExitCandidates.STATUS_NO_CLOUD,
                                         "no good cloud received yet", rospy.Time.now())
             else:
-                cand = self._find(points, stamp, method, viewpoint)
+                cand = self._find(points, stamp, method, viewpoint, any_probability)
             self._publish(cand)
             return cand
 
@@ -198,9 +198,11 @@ class ExitFinderNode:
             return None
         return (tf.transform.translation.x, tf.transform.translation.y)
 
-    def _find(self, points, stamp, method, viewpoint):
+    def _find(self, points, stamp, method, viewpoint, any_probability):
         cfg = dataclasses.replace(self.cfg, gap_viewpoint=viewpoint
                                   if viewpoint != "robot" else "origin")
+        if any_probability:
+            cfg = dataclasses.replace(cfg, rank_min_probability=0.0)
         robot_xy = self._robot_xy() if viewpoint == "robot" else None
         try:
             result = find_exit(points, method=method, config=cfg, up_axis="z",

@@ -139,7 +139,8 @@ class ConductorConfig:
                                          # are skipped
     stall_timeout_s: float = 30.0        # no progress toward a goal for this long: a goal failure
     stall_progress_m: float = 0.2        # ... progress: this much closer than ever before
-    exit_near_m: float = 1.0             # stalled this close to the exit: pass through from there
+    exit_near_m: float = 1.0             # stalled this close to the exit (the point beyond it):
+                                         # pass through (look around) from there
     lost_timeout_s: float = 60.0         # tracking lost this long: gave up (out, past an exit)
     scan_retry_lost_s: float = 5.0       # lost this long in a scan's retries (one step undone
                                          # and redone on one line): stop it, relocalise instead
@@ -808,8 +809,13 @@ class Conductor:
                     if obs.robot_xy is not None and self.goal_xy is not None else None)
         near = distance is not None and distance <= cfg.reached_tolerance_m
         stalled = self._stalled(t, distance)
-        if stalled and self.phase == Phase.GO_TO_EXIT and distance <= cfg.exit_near_m:
-            self._set(t, State.GOAL, self.phase, "no closer to the exit: pass through from here")
+        if stalled and distance <= cfg.exit_near_m and self.phase in (Phase.GO_TO_EXIT,
+                                                                      Phase.PASS_THROUGH):
+            # Parked at the free cell nearest to a goal inside an obstacle, where the navigator
+            # never says "reached": the exit, or the point beyond it in a wall out there.
+            self._set(t, State.GOAL, self.phase, "no closer to the exit: pass through from here"
+                      if self.phase == Phase.GO_TO_EXIT else
+                      "no closer to the point beyond the exit: passed through from here")
             near = True
         if obs.navigator_state == "reached" or near:
             if self.phase == Phase.GO_TO_EXIT:

@@ -963,6 +963,22 @@ def test_parked_near_the_point_beyond_the_exit_inside_an_obstacle_looks_around_f
     assert "no progress" in m.conductor.reason
 
 
+def test_waiting_for_a_map_to_plan_on_scans_to_build_it_then_asks_for_the_exit_again():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, stall_timeout_s=30.0))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 5.0),))
+    # A new SLAM map without a floor yet: the navigator holds the goal with nothing to plan on.
+    m.tick(navigator_state="planning")
+    assert m.tick(dt=20.0) == []
+    actions = m.tick(dt=11.0)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.CANCEL_GOAL, None),
+                                                      (ActionKind.SCAN, "random")]
+    assert (m.conductor.phase, m.conductor.reason) == (Phase.WALL_SCAN,
+                                                       "no map to plan on for 30 s: scan more")
+    assert kinds(m.run_scan()) == [ActionKind.FIND_EXIT]
+
+
 def test_no_progress_far_from_the_goal_counts_as_a_failure_time_lost_does_not():
     m = Mission(ConductorConfig(wall_scan_enabled=False, stall_timeout_s=30.0,
                                 goal_failure_grace_s=5.0, max_goal_failures=1))

@@ -102,7 +102,9 @@ class Observation:
     # metres of the room's side walls the map shows carried on past the door's wall; None
     # without an outline (or a door) to measure them on.
     side_walls_beyond_m: Optional[float] = None
-    navigator_state: str = ""            # navigator/status state name, lower case
+    # The navigator's goal: "planning" (accepted, no map or pose to plan on yet), "following",
+    # "reached", "no_path", "goal_in_obstacle"; empty without a goal.
+    navigator_state: str = ""
     motion_failed: bool = False          # the motion layer gave up (blocked, refused commands)
     start_requested: bool = False
     stop_requested: bool = False
@@ -831,6 +833,13 @@ class Conductor:
             self._set(t, State.IDLE, Phase.DONE, "back at the start")
             # Within tolerance the navigator may still hold the goal and publish its path.
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
+        if stalled and obs.navigator_state == "planning" and self.phase == Phase.GO_TO_EXIT:
+            # No map of the SLAM map tracked now to plan on (a new map whose floor is not found
+            # yet): a robot waiting for one sees nothing new, so it would wait for ever. Scanning
+            # builds the map, and the finder reads the exit again in it.
+            self._set(t, State.START, Phase.WALL_SCAN, f"no map to plan on for "
+                      f"{cfg.stall_timeout_s:g} s: scan more")
+            return [Action(ActionKind.CANCEL_GOAL), self._scan("random")]
         failure = (f"navigator: {obs.navigator_state}" if obs.navigator_state in _FAILED_NAVIGATION
                    else "motion failed" if obs.motion_failed
                    else f"no progress for {cfg.stall_timeout_s:g} s" if stalled else None)

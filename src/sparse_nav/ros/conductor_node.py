@@ -18,7 +18,7 @@ from std_srvs.srv import Trigger, TriggerResponse
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, Phase,
                                   ScanRunner, ScanRunnerConfig, take_off)
 from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
-from sparse_nav.msg import ConductorState, MotionStatus, SlamState
+from sparse_nav.msg import ConductorState, MotionStatus, NavigatorStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
 from sparse_nav.ros.robot_io import StepExecutor, TelloClient
@@ -110,6 +110,9 @@ class ConductorNode:
         rospy.Subscriber("slam/state", SlamState, self._on_slam_state, queue_size=10)
         rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=1)
         rospy.Subscriber("motion/status", MotionStatus, self._on_motion_status, queue_size=10)
+        self.navigator_planning = False
+        rospy.Subscriber("navigator/status", NavigatorStatus, self._on_navigator_status,
+                         queue_size=10)
         rospy.Service("~start", Trigger, lambda _: self._request("start"))
         rospy.Service("~stop", Trigger, lambda _: self._request("stop"))
         rospy.Service("~return_to_start", Trigger, lambda _: self._request("return"))
@@ -136,6 +139,10 @@ class ConductorNode:
         with self.lock:
             self.obs.motion_failed = msg.state == MotionStatus.FAILED
             self.motion_moving = msg.state in (MotionStatus.FOLLOWING, MotionStatus.WALL_SEEKING)
+
+    def _on_navigator_status(self, msg):
+        with self.lock:
+            self.navigator_planning = msg.state == NavigatorStatus.PLANNING
 
     def _on_map(self, msg):
         if msg.info.resolution <= 0 or len(msg.data) != msg.info.width * msg.info.height:
@@ -185,6 +192,8 @@ class ConductorNode:
             self.requests = {"start": False, "stop": False, "return": False}
             state = self.navigator.get_state() if self.conductor.goal_xy is not None else None
             obs.navigator_state = _NAVIGATOR_STATES.get(state, "")
+            if obs.navigator_state == "following" and self.navigator_planning:
+                obs.navigator_state = "planning"  # the goal accepted, no map or pose to plan on
             snapshot = Observation(**vars(obs))
             obs.exit_answered = False  # an answer is seen once
         return snapshot, pose

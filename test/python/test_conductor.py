@@ -932,7 +932,9 @@ def test_parked_near_an_exit_inside_an_obstacle_passes_through_from_there():
     assert any("no closer to the exit" in tr.reason for tr in m.conductor.history)
 
 
-def test_parked_near_the_point_beyond_the_exit_inside_an_obstacle_looks_around_from_there():
+def passing_through_to_a_stall(parked_xy):
+    """At the exit (5, 0), passing through toward (6.5, 0); parked at parked_xy, the navigator
+    still 'following', for 35 s and then the goal failure grace."""
     m = Mission(ConductorConfig(wall_scan_enabled=False, stall_timeout_s=30.0, exit_near_m=1.0,
                                 max_goal_failures=1, goal_failure_grace_s=5.0))
     m.tick(start_requested=True)
@@ -940,25 +942,21 @@ def test_parked_near_the_point_beyond_the_exit_inside_an_obstacle_looks_around_f
     m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 5.0),))
     m.tick(robot_xy=(4.9, 0.0), navigator_state="reached")
     assert m.conductor.phase == Phase.PASS_THROUGH and m.conductor.goal_xy == (6.5, 0.0)
-    m.tick(dt=5.0, robot_xy=(5.9, 0.0), navigator_state="following")
-    # (6.5, 0) lies in a wall out there: parked 0.6 m short, the navigator keeps 'following'.
+    m.tick(dt=5.0, robot_xy=parked_xy, navigator_state="following")
     assert m.tick(dt=20.0) == [] and m.conductor.phase == Phase.PASS_THROUGH
-    actions = m.tick(dt=15.0)
+    return m, m.tick(dt=15.0) + m.tick(dt=6.0)
+
+
+def test_parked_near_the_point_beyond_the_exit_inside_an_obstacle_looks_around_from_there():
+    # (6.5, 0) lies in a wall out there: parked 0.6 m short.
+    m, actions = passing_through_to_a_stall((5.9, 0.0))
     assert (m.conductor.state, m.conductor.phase) == (State.START, Phase.LOOK_AROUND)
     assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.SCAN]
     assert m.conductor.exit_xy == (5.0, 0.0)  # the exit is kept, not the next candidate
     assert any("no closer to the point beyond the exit" in tr.reason
                for tr in m.conductor.history)
     # Stuck in the door instead, 1.5 m short: no progress, the next candidate.
-    m = Mission(ConductorConfig(wall_scan_enabled=False, stall_timeout_s=30.0, exit_near_m=1.0,
-                                max_goal_failures=1, goal_failure_grace_s=5.0))
-    m.tick(start_requested=True)
-    m.run_scan()
-    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 5.0),))
-    m.tick(robot_xy=(4.9, 0.0), navigator_state="reached")
-    m.tick(dt=5.0, robot_xy=(5.0, 0.0), navigator_state="following")
-    m.tick(dt=31.0)
-    m.tick(dt=6.0)
+    m, actions = passing_through_to_a_stall((5.0, 0.0))
     assert m.conductor.phase == Phase.GO_TO_EXIT and m.conductor.exit_xy == (0.0, 5.0)
     assert "no progress" in m.conductor.reason
 

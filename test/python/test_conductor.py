@@ -601,6 +601,26 @@ def test_a_partial_look_names_the_map_it_began_in_even_when_the_new_one_holds_mo
     assert "look ended in SLAM map 1, begun since, not in map 0:" in m.conductor.reason
 
 
+def test_a_look_around_ending_in_an_older_slam_map_is_judged_by_its_openings():
+    # Lost passing through, back in a new map 1 that does not merge: the look begins there.
+    m = passing_through()
+    m.tick(robot_xy=(6.0, 0.0))
+    m.tick(tracking_lost=True)
+    m.tick(tracking_lost=False, slam_map_index=1)
+    for _ in range(4):
+        m.tick(dt=6.0)
+    assert m.conductor.phase == Phase.LOOK_AROUND, m.conductor.reason
+    m.tick(scan_running=True, walls_around=WALLS_OUTSIDE)
+    # Tracking comes back in map 0, which knew the place: no sign of too little to track.
+    m.tick(tracking_lost=True, walls_around=())
+    m.tick(tracking_lost=False, slam_map_index=0, walls_around=WALLS_ROOM)
+    m.tick(scan_running=False)
+    m.tick(dt=10.0)
+    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2), m.conductor.reason
+    assert "; 1 tracking losses looking around, the look ending in an older SLAM map" in \
+        m.conductor.reason
+
+
 def test_a_look_around_whose_new_map_merged_back_is_judged_by_its_openings():
     m = partial_look(merged=True)
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)

@@ -300,6 +300,10 @@ class Conductor:
         # (walls_around, side_walls_beyond_m) of the newest look around while tracking
         self._last_look = ((), None)
         self._look_losses = 0  # tracking losses of the present look around
+        # SLAM map indices count up for each new map (merges go back to an older one): the
+        # highest seen, and the highest seen when the present look around began.
+        self._max_map_index = None
+        self._look_known_map_index = None
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
@@ -341,6 +345,8 @@ class Conductor:
         if self.state == State.START and obs.scan_running and not obs.tracking_lost:
             key = obs.slam_map_index
             self._scan_tracked_s[key] = self._scan_tracked_s.get(key, 0.0) + dt
+        if obs.slam_map_index is not None:
+            self._max_map_index = max(obs.slam_map_index, self._max_map_index or 0)
         if obs.slam_map_index != self._map_index_seen:
             if self._map_index_seen is not None:
                 self._map_changed_s = t
@@ -667,6 +673,7 @@ class Conductor:
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         self._last_look = ((), None)
         self._look_losses = 0
+        self._look_known_map_index = self._max_map_index
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
@@ -683,8 +690,13 @@ class Conductor:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit (no map to look "
                                                  "around in)")
             return [Action(ActionKind.STOP)]
-        # Part of the look tracked in a map it did not end in: a new one, never merged back.
-        partial = self._look_losses > 0 and self._scan_map_share(obs) < 1.0
+        # Part of the look tracked in a map it did not end in, begun during it and never merged
+        # back (tracking back in an older map is no sign of too little to track: that map knew
+        # the place).
+        known = self._look_known_map_index
+        begun_since = obs.slam_map_index is not None and (known is None
+                                                          or obs.slam_map_index > known)
+        partial = self._look_losses > 0 and self._scan_map_share(obs) < 1.0 and begun_since
         if partial and cfg.partial_look_means_out:
             before = ", ".join(str(k) for k in self._scan_tracked_s if k != obs.slam_map_index)
             self._set(t, State.IDLE, Phase.DONE,
@@ -705,8 +717,9 @@ class Conductor:
         else:
             side = f"the room's side walls end at the door's wall ({side_m:.1f} m past it)"
         if self._look_losses:
-            side += (f"; {self._look_losses} tracking losses looking around, the look "
-                     f"{'partly in a new SLAM map' if partial else 'in one SLAM map'}")
+            where = ("partly in a new SLAM map" if partial else "in one SLAM map"
+                     if self._scan_map_share(obs) >= 1.0 else "ending in an older SLAM map")
+            side += f"; {self._look_losses} tracking losses looking around, the look {where}"
         if not walled_beside and wide:
             self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
                                                  f"{side}")

@@ -3,5 +3,5 @@ from sparse_nav.conductor.machine import (Action, ActionKind, Conductor, Conduct
                                           ExitRequest, Observation, Phase, State, Transition)
 from sparse_nav.conductor.scan_runner import ScanRunner, ScanRunnerConfig, take_off
 
-__all__ = ["Action", "ActionKind", "Conductor", "ConductorConfig", "ExitRequest", "Observation", "Phase",
-           "State", "Transition", "ScanRunner", "ScanRunnerConfig", "take_off"]
+__all__ = ["Action", "ActionKind", "Conductor", "ConductorConfig", "ExitRequest", "Observation",
+           "Phase", "State", "Transition", "ScanRunner", "ScanRunnerConfig", "take_off"]

@@ -696,7 +696,8 @@ class Conductor:
         known = self._look_known_map_index
         begun_since = obs.slam_map_index is not None and (known is None
                                                           or obs.slam_map_index > known)
-        partial = self._look_losses > 0 and self._scan_map_share(obs) < 1.0 and begun_since
+        one_map = self._scan_map_share(obs) >= 1.0
+        partial = self._look_losses > 0 and not one_map and begun_since
         if partial and cfg.partial_look_means_out:
             before = ", ".join(str(k) for k in self._scan_tracked_s if k != obs.slam_map_index)
             self._set(t, State.IDLE, Phase.DONE,
@@ -717,8 +718,8 @@ class Conductor:
         else:
             side = f"the room's side walls end at the door's wall ({side_m:.1f} m past it)"
         if self._look_losses:
-            where = ("partly in a new SLAM map" if partial else "in one SLAM map"
-                     if self._scan_map_share(obs) >= 1.0 else "ending in an older SLAM map")
+            where = ("partly in a new SLAM map" if partial else "in one SLAM map" if one_map
+                     else "ending in an older SLAM map")
             side += f"; {self._look_losses} tracking losses looking around, the look {where}"
         if not walled_beside and wide:
             self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "

@@ -199,10 +199,9 @@ class ExitFinderNode:
         return (tf.transform.translation.x, tf.transform.translation.y)
 
     def _find(self, points, stamp, method, viewpoint, any_probability):
-        cfg = dataclasses.replace(self.cfg, gap_viewpoint=viewpoint
-                                  if viewpoint != "robot" else "origin")
-        if any_probability:
-            cfg = dataclasses.replace(cfg, rank_min_probability=0.0)
+        cfg = dataclasses.replace(
+            self.cfg, gap_viewpoint=viewpoint if viewpoint != "robot" else "origin",
+            rank_min_probability=0.0 if any_probability else self.cfg.rank_min_probability)
         robot_xy = self._robot_xy() if viewpoint == "robot" else None
         try:
             result = find_exit(points, method=method, config=cfg, up_axis="z",

@@ -568,12 +568,13 @@ def test_tracking_lost_looking_around_outside_the_outline_is_done_else_the_last_
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
 
 
-def partial_look(config=None, merged=False):
-    """Looking around in SLAM map 0, tracking lost, back in a new map 1 whose few seconds of
-    points wall the robot in; merged: SLAM then merges map 1 back into map 0."""
+def partial_look(config=None, merged=False, tracked_at_loss=None):
+    """Looking around in SLAM map 0, tracking lost (with tracked_at_loss map points tracked),
+    back in a new map 1 whose few seconds of points wall the robot in; merged: SLAM then merges
+    map 1 back into map 0."""
     m = looking_around(config)
     m.tick(slam_map_index=0, walls_around=WALLS_OUTSIDE)
-    m.tick(tracking_lost=True, walls_around=())
+    m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=tracked_at_loss)
     m.tick(tracking_lost=False, slam_map_index=1, walls_around=WALLS_ROOM)
     if merged:
         m.tick(slam_map_index=0, slam_merges=((1, 0),))
@@ -587,6 +588,18 @@ def test_a_look_around_ending_in_a_slam_map_begun_during_it_is_out():
     assert (m.conductor.phase, m.conductor.reason) == (
         Phase.DONE, "passed through the exit: tracking lost looking around (1 losses), and the "
         "look ended in SLAM map 1, begun since, not in map 0: too little around to track, out")
+
+
+def test_a_sudden_loss_does_not_make_a_look_partial_a_view_thinning_out_does():
+    # Lost with 1700 map points in view (a forced loss, blur): the new map is judged as any.
+    m = partial_look(tracked_at_loss=1700)
+    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2), m.conductor.reason
+    assert ("; 1 sudden tracking losses (at least 200 map points tracked) not counted"
+            in m.conductor.reason)
+    assert "tracking losses looking around" not in m.conductor.reason
+    m = partial_look(tracked_at_loss=199)
+    assert m.conductor.phase == Phase.DONE
+    assert "tracking lost looking around (1 losses)" in m.conductor.reason
 
 
 def test_a_partial_look_names_the_map_it_began_in_even_when_the_new_one_holds_more_of_it():
@@ -642,12 +655,23 @@ WALLS_40_DEG_OPENING = (False,) * 8 + (True,) * 64
 def test_a_look_around_that_often_lost_tracking_takes_a_40_deg_opening_for_out(losses, phase):
     m = looking_around()
     for _ in range(losses):
-        m.tick(tracking_lost=True, walls_around=())
+        m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=40)
         m.tick(tracking_lost=False, walls_around=WALLS_40_DEG_OPENING)
     m.tick(scan_running=False)
     assert m.conductor.phase == phase
     assert "openings up to 40 deg wide" in m.conductor.reason
     assert f"{losses} tracking losses looking around" in m.conductor.reason
+
+
+def test_sudden_losses_looking_around_do_not_narrow_the_opening_taken_for_out():
+    m = looking_around()
+    for tracked in (40, 900, 900):  # one view thinning out, two sudden losses
+        m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=tracked)
+        m.tick(tracking_lost=False, walls_around=WALLS_40_DEG_OPENING)
+    m.tick(scan_running=False)
+    assert m.conductor.phase == Phase.FIND_EXIT
+    assert ("1 tracking losses looking around, the look in one SLAM map; 2 sudden tracking losses"
+            in m.conductor.reason)
 
 
 def test_tracking_lost_past_the_exit_and_never_back_is_done_inside_the_outline_gave_up():

@@ -78,6 +78,8 @@ class Observation:
 
     time_s: float
     tracking_lost: bool = False          # SLAM lost its map (not: not initialised yet)
+    slam_tracked_points: Optional[int] = None  # map points tracked at the newest SLAM state
+                                         # (at a loss: the count it was lost with)
     slam_map_index: Optional[int] = None  # the SLAM map the robot tracks in (slam/state)
     # (from, into) SLAM map indices: the map changed while tracking, so SLAM merged `from` into
     # `into` (or re-anchored it there): what was found in `from` lives on in `into`.
@@ -175,11 +177,15 @@ class ConductorConfig:
                                          # its openings on a few seconds of map: out (done)
                                          # instead; beyond a door a camera loses tracking
                                          # in open space, and rarely in a room
+    sudden_loss_min_tracked_points: int = 200  # a loss with this many map points tracked at
+                                         # it (a blurred or covered camera, not a view with too
+                                         # little in it) is no sign of open space: a look
+                                         # around does not count it
 
     def validate(self):
         for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts",
                      "max_goal_failures", "max_goal_losses", "max_rooms", "max_rescans",
-                     "lossy_look_min_losses"):
+                     "lossy_look_min_losses", "sudden_loss_min_tracked_points"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
@@ -299,7 +305,8 @@ class Conductor:
         self._outside_by = 0.0
         # (walls_around, side_walls_beyond_m) of the newest look around while tracking
         self._last_look = ((), None)
-        self._look_losses = 0  # tracking losses of the present look around
+        self._look_losses = 0  # tracking losses of the present look around (few points tracked)
+        self._look_sudden_losses = 0  # ... and those with plenty tracked (not counted above)
         # SLAM map indices count up for each new map (merges go back to an older one): the
         # highest seen, and the highest seen when the present look around began.
         self._max_map_index = None
@@ -441,7 +448,10 @@ class Conductor:
                     self._resume_state = self.state
                 self._count_goal_loss()
                 if self.phase == Phase.LOOK_AROUND:
-                    self._look_losses += 1
+                    if (obs.slam_tracked_points or 0) >= cfg.sudden_loss_min_tracked_points:
+                        self._look_sudden_losses += 1
+                    else:
+                        self._look_losses += 1
                 if self.state == State.START and obs.scan_running:
                     # The scan's retry mechanism undoes and redoes steps until tracking is back.
                     self._set(t, State.LOST, self.phase, "SLAM tracking lost: the scan retries")
@@ -672,7 +682,7 @@ class Conductor:
             self._set(t, State.IDLE, Phase.DONE, "passed through the exit")
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         self._last_look = ((), None)
-        self._look_losses = 0
+        self._look_losses = self._look_sudden_losses = 0
         self._look_known_map_index = self._max_map_index
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
@@ -721,6 +731,9 @@ class Conductor:
             where = ("partly in a new SLAM map" if partial else "in one SLAM map" if one_map
                      else "ending in an older SLAM map")
             side += f"; {self._look_losses} tracking losses looking around, the look {where}"
+        if self._look_sudden_losses:
+            side += (f"; {self._look_sudden_losses} sudden tracking losses (at least "
+                     f"{cfg.sudden_loss_min_tracked_points} map points tracked) not counted")
         if not walled_beside and wide:
             self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
                                                  f"{side}")

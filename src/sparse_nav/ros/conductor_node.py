@@ -134,6 +134,7 @@ class ConductorNode:
                     self.obs.slam_merges += ((previous, msg.map_index),)
             self.obs.tracking_lost = lost
             self.obs.slam_map_index = msg.map_index
+            self.obs.slam_tracked_points = msg.n_tracked_points
 
     def _on_motion_status(self, msg):
         with self.lock:

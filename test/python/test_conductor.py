@@ -522,6 +522,24 @@ def test_a_wide_opening_between_side_walls_going_on_past_the_doors_wall_is_anoth
     assert m.conductor.phase == Phase.DONE
 
 
+@pytest.mark.parametrize("losses, phase", [(2, Phase.FIND_EXIT), (3, Phase.DONE)])
+def test_side_walls_going_on_do_not_make_a_room_of_a_look_that_often_lost_tracking(losses, phase):
+    # Beyond a recessed door the outline's side edges run on outward, along the building or
+    # into the wall beyond the exit smeared along the view: side walls, seen by a look losing
+    # tracking as a camera facing open space does.
+    m = looking_around()
+    for _ in range(losses):
+        m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=40)
+        m.tick(tracking_lost=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=1.2)
+    m.tick(scan_running=False)
+    assert m.conductor.phase == phase, m.conductor.reason
+    if phase == Phase.DONE:
+        assert m.conductor.reason == (
+            "passed through the exit: openings up to 150 deg wide around, the room's side walls "
+            "go on 1.2 m past the door's wall; 3 tracking losses looking around, the look in one "
+            "SLAM map: too many losses for a room")
+
+
 @pytest.mark.parametrize("side_m, said", [
     (0.0, "another room beyond the exit (openings up to 30 deg wide, the room's side walls end "
           "at the door's wall (0.0 m past it))"),

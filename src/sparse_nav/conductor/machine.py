@@ -167,11 +167,13 @@ class ConductorConfig:
     walls_around_range_m: float = 8.0    # ... walls this close count (the node's grid query)
     room_side_walls_min_m: float = 0.5   # the room's side walls mapped this far on past the
                                          # door's wall: another room however wide the openings
-                                         # (a partition's door; a blank wall ahead); less, or no
-                                         # outline to measure them on: the openings decide
+                                         # (a partition's door; a blank wall ahead), unless the
+                                         # look is lossy (below); less, or no outline to
+                                         # measure them on: the openings decide
     lossy_look_min_losses: int = 3       # a look around that lost tracking this often judges
     lossy_look_max_opening_deg: float = 37.5  # ... its openings by this limit instead of
-                                         # room_max_opening_deg: a 40-deg opening is out
+                                         # room_max_opening_deg (a 40-deg opening is out),
+                                         # whatever the side walls
     partial_look_means_out: bool = True  # a look around that lost tracking and ended in a
                                          # SLAM map begun during it (no merge back) judges
                                          # its openings on a few seconds of map: out (done)
@@ -734,9 +736,12 @@ class Conductor:
         if self._look_sudden_losses:
             side += (f"; {self._look_sudden_losses} sudden tracking losses (at least "
                      f"{cfg.sudden_loss_min_tracked_points} map points tracked) not counted")
-        if not walled_beside and wide:
+        if wide and (lossy or not walled_beside):
+            # Side walls seen going on past the door's wall by a look that lost tracking this
+            # often are the building's outside walls, or a wall beyond smeared along the view.
+            why = ": too many losses for a room" if walled_beside else ""
             self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
-                                                 f"{side}")
+                                                 f"{side}{why}")
             return [Action(ActionKind.STOP)]
         # A blank wall ahead looks like open space; walls going on beside it do not.
         seen += f", {'but ' if wide else ''}{side}"

@@ -1396,3 +1396,39 @@ def test_an_interrupted_step_is_done_again_when_the_scan_goes_on():
     assert runner.succeeded == [a, b, c]
     runner.interrupt()  # nothing in progress: nothing to redo
     assert runner.done
+
+
+
+def test_losing_tracking_again_and_again_passing_through_outside_the_outline_looks_around():
+    m = passing_through(ConductorConfig(wall_scan_enabled=False, max_goal_losses=3,
+                                        pass_through_m=3.0))
+    actions = losing_tracking_on_the_way(m, (6.3, 0.0), 2)   # 0.3 m beyond ROOM's east wall
+    assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.GOAL, (8.0, 0.0))
+    actions = losing_tracking_on_the_way(m, (6.35, 0.0), 1)  # the third, no closer
+    assert [(a.kind, a.payload) for a in actions][-2:] == [(ActionKind.CANCEL_GOAL, None),
+                                                           (ActionKind.SCAN, "look_around")]
+    assert m.conductor.phase == Phase.LOOK_AROUND and m.conductor.door_xy == (5.0, 0.0)
+    assert m.conductor.reason == ("SLAM tracking lost 3 times passing through (5.00, 0.00) "
+                                  "without coming closer to the point beyond: look around from "
+                                  "here")
+
+
+def test_losing_tracking_again_and_again_passing_through_inside_the_outline_is_a_wrong_exit():
+    m = passing_through(ConductorConfig(wall_scan_enabled=False, max_goal_losses=3))
+    losing_tracking_on_the_way(m, (5.3, 0.0), 2)   # 0.7 m inside: the "exit" is in a wall
+    actions = losing_tracking_on_the_way(m, (5.3, 0.0), 1)
+    assert kinds(actions)[-1] == ActionKind.FIND_EXIT
+    assert m.conductor.phase == Phase.FIND_EXIT
+    assert ("without coming closer to the point beyond, 0.70 m inside the room outline: not an "
+            "exit; look for the exit again") in m.conductor.reason
+    m.tick(exit_answered=True, exit_xy=(5.2, 0.3))  # near the rejected one: out of the running
+    assert m.conductor.phase != Phase.GO_TO_EXIT
+
+
+def test_losses_passing_through_that_make_progress_do_not_count():
+    m = passing_through(ConductorConfig(wall_scan_enabled=False, max_goal_losses=2,
+                                        pass_through_m=3.0))
+    for x in (5.6, 6.2, 6.8):
+        actions = losing_tracking_on_the_way(m, (x, 0.0), 1)
+        assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.GOAL, (8.0, 0.0))
+    assert m.conductor.phase == Phase.PASS_THROUGH

@@ -488,11 +488,13 @@ class Conductor:
                 obs_scan_running = False
             else:
                 obs_scan_running = obs.scan_running
-            if (self._resume_state == State.GOAL and self.phase == Phase.GO_TO_EXIT
-                    and self._goal_losses >= cfg.max_goal_losses):
-                why = (f"SLAM tracking lost {self._goal_losses} times on the way to the exit "
-                       f"({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f}) without coming closer")
-                return actions + self._next_exit(t, why, why, scan_first=True)
+            if self._resume_state == State.GOAL and self._goal_losses >= cfg.max_goal_losses:
+                if self.phase == Phase.GO_TO_EXIT:
+                    why = (f"SLAM tracking lost {self._goal_losses} times on the way to the exit "
+                           f"({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f}) without coming closer")
+                    return actions + self._next_exit(t, why, why, scan_first=True)
+                if self.phase == Phase.PASS_THROUGH:
+                    return actions + self._pass_through_untrackable(t, obs)
             if self._resume_state == State.GOAL and self.goal_xy is not None:
                 actions.append(Action(ActionKind.GOAL, self.goal_xy))  # the map may be new
             elif self._resume_state == State.START and not obs_scan_running:
@@ -585,10 +587,24 @@ class Conductor:
                                                       f"map ({self._rescans}/{cfg.max_rescans})")
         return stop + [Action(ActionKind.CANCEL_GOAL), self._scan("initial")]
 
+    def _pass_through_untrackable(self, t, obs):
+        """Tracking lost max_goal_losses times passing through, never closer to the point beyond:
+        a camera facing a wall up close (a false exit) or open space (out, a wall beyond too
+        near for the point beyond). Still inside the room outline, the exit was wrong; else the
+        look around from here decides, as it would have from the point beyond."""
+        why = (f"SLAM tracking lost {self._goal_losses} times passing through "
+               f"({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f}) without coming closer to the "
+               f"point beyond")
+        inside = distance_inside(obs.robot_xy, obs.room_outline)
+        if inside >= self.config.inside_room_margin_m:
+            return self._wrong_exit(t, f"{why}, {inside:.2f} m inside the room outline: not an "
+                                       f"exit")
+        return self._look_around(t, f"{why}: look around from here", self.exit_xy)
+
     def _count_goal_loss(self):
-        """A loss on the way to an exit counts when the robot came no closer since the last one
-        (a forced or occasional loss on a route that makes progress does not)."""
-        if self.state != State.GOAL or self.phase != Phase.GO_TO_EXIT \
+        """A loss on the way to an exit or through it counts when the robot came no closer since
+        the last one (a forced or occasional loss on a route that makes progress does not)."""
+        if self.state != State.GOAL or self.phase not in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH) \
                 or self._last_tracked_xy is None or self.goal_xy is None:
             return
         distance = math.dist(self._last_tracked_xy, self.goal_xy)

@@ -130,6 +130,7 @@ class ConductorConfig:
     max_goal_losses: int = 3             # tracking lost this often in a row on the way to an
                                          # exit, never stall_progress_m closer between losses:
                                          # a route the camera cannot track along; next exit
+                                         # (passing through: the pass-through ends there)
     goal_failure_grace_s: float = 10.0   # a failure must last this long to count (replanning)
     pass_through_m: float = 1.5          # beyond the exit, away from the room
     exit_check_near_m: float = 0.3       # the map is asked about free space this far beyond an

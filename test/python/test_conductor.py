@@ -423,6 +423,46 @@ def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_
         "walls end at the door's wall (0.0 m past it)")
 
 
+OUTSIDE_EAST = ((5.5, -3.0), (10.0, -3.0), (10.0, 3.0), (5.5, 3.0))  # beyond ROOM's door
+
+
+def into_the_room_before(config=None):
+    """looking_around takes the space beyond ROOM's door for a room, whose exit at (3, 0) leads
+    back into ROOM: the robot stands at the pass-through goal (1.5, 0), 1 m inside ROOM; the
+    mission and the actions there."""
+    m = looking_around(config)
+    m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    assert m.conductor.rooms == 2
+    actions = m.tick(exit_answered=True, exit_xy=(3.0, 0.0), room_outline=OUTSIDE_EAST)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (3.0, 0.0))]
+    m.tick(robot_xy=(3.0, 0.0), navigator_state="reached")
+    assert m.conductor.goal_xy == pytest.approx((1.5, 0.0))
+    return m, m.tick(robot_xy=(1.5, 0.0), navigator_state="reached")
+
+
+def test_a_room_whose_exit_leads_back_into_the_room_before_was_outside_back_out_there():
+    m, actions = into_the_room_before()
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (6.5, 0.0))]
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.BACK_OUT)
+    assert m.conductor.reason == ("passed through (3.00, 0.00) back into the room before (1.00 m "
+                                  "inside its outline): the look around at (6.50, 0.00) stood "
+                                  "outside: back out there")
+    actions = m.tick(robot_xy=(6.4, 0.1), navigator_state="reached")
+    assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "back out where the robot looked around beyond the room before's door")
+
+
+def test_the_room_before_counts_only_in_the_slam_map_its_outline_was_drawn_in():
+    m = looking_around()
+    m.tick(scan_running=False, walls_around=WALLS_ROOM)
+    m.tick(slam_map_index=1)   # a new map, never merged back: ROOM's coordinates mean nothing
+    m.tick(exit_answered=True, exit_xy=(3.0, 0.0), room_outline=OUTSIDE_EAST)
+    m.tick(robot_xy=(3.0, 0.0), navigator_state="reached")
+    m.tick(robot_xy=(1.5, 0.0), navigator_state="reached")
+    assert m.conductor.phase == Phase.LOOK_AROUND
+
+
 def test_the_first_rooms_untried_candidates_come_after_the_new_rooms():
     m = Mission(ConductorConfig(wall_scan_enabled=False))
     m.tick(start_requested=True)

@@ -39,6 +39,8 @@ class Phase(enum.Enum):
     GO_TO_EXIT = "go_to_exit"
     PASS_THROUGH = "pass_through"
     LOOK_AROUND = "look_around"      # beyond an exit: outside, or in another room?
+    BACK_OUT = "back_out"            # the room looked into led back into the room before:
+                                     # back to where that look stood, which was out
     RETURN_TO_START = "return_to_start"
     DONE = "done"
     GAVE_UP = "gave_up"
@@ -273,6 +275,11 @@ class Conductor:
         self._rescans = 0
         self._door_xy = None  # the exit come through, where the robot looks around
         self._room_before_origin_xy = None  # room_origin_xy of the room the door led out of
+        # The room before's outline, the SLAM map it was drawn in, and where the look that took
+        # the place beyond its door for another room stood.
+        self._room_before_outline = ()
+        self._room_before_map = None
+        self._room_look_xy = None
         self._room_unconfirmed = False  # walls all round, no exit of theirs found yet
         # Exits passed through without leaving the room. They hold in every SLAM map: slam_bridge
         # anchors a new map where the robot was last tracked, and such a door is near it.
@@ -540,6 +547,8 @@ class Conductor:
         for old, new in obs.slam_merges[self._merges_applied:]:
             if self._alternatives_map == old:
                 self._alternatives_map = new
+            if self._room_before_map == old:
+                self._room_before_map = new
             if old in self._scan_tracked_s:
                 self._scan_tracked_s[new] = (self._scan_tracked_s.get(new, 0.0)
                                              + self._scan_tracked_s.pop(old))
@@ -555,7 +564,7 @@ class Conductor:
         """Tracking is back on the way to or through an exit, but in another SLAM map than the
         one the exit was found in (or merged into since): its coordinates mean nothing there."""
         return (self._resume_state == State.GOAL
-                and self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH)
+                and self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH, Phase.BACK_OUT)
                 and None not in (self._alternatives_map, obs.slam_map_index)
                 and obs.slam_map_index != self._alternatives_map)
 
@@ -574,7 +583,7 @@ class Conductor:
         self._merge_wait_since_s = None
         stop = [Action(ActionKind.STOP)] if obs.scan_running else []
         why = f"no merge back into the exit's SLAM map within {cfg.merge_wait_s:g} s"
-        if self.phase == Phase.PASS_THROUGH:
+        if self.phase in (Phase.PASS_THROUGH, Phase.BACK_OUT):
             return stop + self._look_around(t, f"{why}, past the exit: look around in the new "
                                                f"map", door_xy=self.exit_xy)
         if self._rescans >= cfg.max_rescans:
@@ -772,6 +781,9 @@ class Conductor:
         self._outside_by = 0.0
         self._room_before_origin_xy = self.room_origin_xy
         self.room_origin_xy = obs.robot_xy or self._last_tracked_xy
+        self._room_before_outline = tuple(obs.room_outline)
+        self._room_before_map = obs.slam_map_index
+        self._room_look_xy = self.room_origin_xy
         self._exit_viewpoint = "robot"
         self._exit_attempts = 0
         return self._ask_exit(t, f"another room beyond the exit ({seen}): find its exit "
@@ -814,6 +826,7 @@ class Conductor:
                 # elsewhere, through its next candidate (the way there leads back through the door).
                 candidates, found = back, f"{why}: back to the room before's next candidate"
                 self.room_origin_xy = self._room_before_origin_xy
+                self._room_before_outline = ()  # back into it on purpose
             self._room_unconfirmed = False
         if candidates:
             # The room before's untried candidates come last (a door into a room with no exit).
@@ -861,12 +874,14 @@ class Conductor:
         near = distance is not None and distance <= cfg.reached_tolerance_m
         stalled = self._stalled(t, distance)
         if stalled and distance <= cfg.exit_near_m and self.phase in (Phase.GO_TO_EXIT,
-                                                                      Phase.PASS_THROUGH):
+                                                                      Phase.PASS_THROUGH,
+                                                                      Phase.BACK_OUT):
             # Parked at the free cell nearest to a goal inside an obstacle, where the navigator
             # never says "reached": the exit, or the point beyond it in a wall out there.
             self._set(t, State.GOAL, self.phase, "no closer to the exit: pass through from here"
                       if self.phase == Phase.GO_TO_EXIT else
-                      "no closer to the point beyond the exit: passed through from here")
+                      "no closer to the point beyond the exit: passed through from here"
+                      if self.phase == Phase.PASS_THROUGH else "no closer: out from here")
             near = True
         if obs.navigator_state == "reached" or near:
             if self.phase == Phase.GO_TO_EXIT:
@@ -878,8 +893,12 @@ class Conductor:
                                            f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the "
                                            "room outline: not an exit")
             if self.phase == Phase.PASS_THROUGH:
-                return self._look_around(t, "passed through the exit: look around", self.exit_xy)
-            self._set(t, State.IDLE, Phase.DONE, "back at the start")
+                return (self._back_in_room_before(t, obs)
+                        or self._look_around(t, "passed through the exit: look around",
+                                             self.exit_xy))
+            self._set(t, State.IDLE, Phase.DONE, "back at the start"
+                      if self.phase == Phase.RETURN_TO_START else
+                      "back out where the robot looked around beyond the room before's door")
             # Within tolerance the navigator may still hold the goal and publish its path.
             return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         if stalled and obs.navigator_state == "planning" and self.phase == Phase.GO_TO_EXIT:
@@ -913,6 +932,24 @@ class Conductor:
         else:
             self._failure_since_s = None
         return []
+
+    def _back_in_room_before(self, t, obs):
+        """Passed through the exit of a room come into, yet inside the room before's outline: that
+        'room' was the space outside, joining the room before's doors. Back out to where the look
+        that took it for a room stood; None when the robot is not in the room before."""
+        cfg = self.config
+        if (self.rooms < 2 or len(self._room_before_outline) < 3 or self._room_look_xy is None
+                or obs.slam_map_index != self._room_before_map):
+            return None
+        inside = distance_inside(obs.robot_xy, self._room_before_outline)
+        if inside < cfg.inside_room_margin_m:
+            return None
+        self._room_before_outline = ()
+        (ex, ey), (lx, ly) = self.exit_xy, self._room_look_xy
+        return self._navigate(t, Phase.BACK_OUT, self._room_look_xy,
+                              f"passed through ({ex:.2f}, {ey:.2f}) back into the room before "
+                              f"({inside:.2f} m inside its outline): the look around at "
+                              f"({lx:.2f}, {ly:.2f}) stood outside: back out there")
 
     def _untried_alternatives(self, obs, tried=()):
         """The candidates still in line, not rejected nor in tried, when they were found in the

@@ -605,11 +605,8 @@ class Conductor:
         why = (f"SLAM tracking lost {self._goal_losses} times passing through "
                f"({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f}) without coming closer to the "
                f"point beyond")
-        inside = distance_inside(obs.robot_xy, obs.room_outline)
-        if inside >= self.config.inside_room_margin_m:
-            return self._wrong_exit(t, f"{why}, {inside:.2f} m inside the room outline: not an "
-                                       f"exit")
-        return self._look_around(t, f"{why}: look around from here", self.exit_xy)
+        return (self._wrong_exit_if_inside(t, obs, f"{why},")
+                or self._look_around(t, f"{why}: look around from here", self.exit_xy))
 
     def _count_goal_loss(self):
         """A loss on the way to an exit or through it counts when the robot came no closer since
@@ -887,13 +884,10 @@ class Conductor:
             if self.phase == Phase.GO_TO_EXIT:
                 target = self._beyond_exit()
                 return self._navigate(t, Phase.PASS_THROUGH, target, "at the exit: pass through")
-            inside = distance_inside(obs.robot_xy, obs.room_outline)
-            if self.phase == Phase.PASS_THROUGH and inside >= cfg.inside_room_margin_m:
-                return self._wrong_exit(t, f"passed through ({self.exit_xy[0]:.2f}, "
-                                           f"{self.exit_xy[1]:.2f}) yet {inside:.2f} m inside the "
-                                           "room outline: not an exit")
             if self.phase == Phase.PASS_THROUGH:
-                return (self._back_in_room_before(t, obs)
+                passed = f"passed through ({self.exit_xy[0]:.2f}, {self.exit_xy[1]:.2f}) yet"
+                return (self._wrong_exit_if_inside(t, obs, passed)
+                        or self._back_in_room_before(t, obs)
                         or self._look_around(t, "passed through the exit: look around",
                                              self.exit_xy))
             self._set(t, State.IDLE, Phase.DONE, "back at the start"
@@ -961,6 +955,14 @@ class Conductor:
     def _was_rejected(self, xy):
         """Near an exit passed through without leaving the room."""
         return any(math.dist(xy, r) < self.config.rejected_exit_radius_m for r in self._rejected)
+
+    def _wrong_exit_if_inside(self, t, obs, why):
+        """Passed through (or stopped passing through) yet inside_room_margin_m inside the room
+        outline: the exit was wrong; None when the robot is not that far inside."""
+        inside = distance_inside(obs.robot_xy, obs.room_outline)
+        if inside < self.config.inside_room_margin_m:
+            return None
+        return self._wrong_exit(t, f"{why} {inside:.2f} m inside the room outline: not an exit")
 
     def _wrong_exit(self, t, why):
         """The exit led nowhere: it and candidates near it are out of the running."""

@@ -1438,7 +1438,6 @@ def test_an_interrupted_step_is_done_again_when_the_scan_goes_on():
     assert runner.done
 
 
-
 def test_losing_tracking_again_and_again_passing_through_outside_the_outline_looks_around():
     m = passing_through(ConductorConfig(wall_scan_enabled=False, max_goal_losses=3,
                                         pass_through_m=3.0))

@@ -72,6 +72,7 @@ class ConductorNode:
         self.conductor = Conductor(self.config)
         self.lock = threading.Lock()
         self.obs = Observation(time_s=0.0)
+        self.outlines_by_map = {}  # SLAM map index -> the exit finder's last room outline in it
         self.requests = {"start": self.auto_start, "stop": False, "return": False}
         self.grid = None
         self.took_off = False
@@ -128,7 +129,9 @@ class ConductorNode:
             lost = msg.state == SlamState.LOST  # not initialised is no loss
             previous = self.obs.slam_map_index
             if msg.map_index != previous:
-                self.obs.room_outline = ()  # drawn in the previous map's frame
+                # An outline holds in the frame of the map it was drawn in: SLAM merging back
+                # into that map (or relocalising in it) brings it back, a new map has none.
+                self.obs.room_outline = self.outlines_by_map.get(msg.map_index, ())
                 if previous is not None and not lost and not self.obs.tracking_lost:
                     # No loss in between: SLAM merged the map (or the bridge re-anchored it).
                     self.obs.slam_merges += ((previous, msg.map_index),)
@@ -312,6 +315,7 @@ class ConductorNode:
                 self.obs.exit_alternatives = alternatives
                 self.obs.exit_leads_out = leads_out
                 self.obs.exit_answered = True
+                self.outlines_by_map[map_index] = outline
                 if map_index == self.obs.slam_map_index:
                     self.obs.room_outline = outline
         self.exit_thread = threading.Thread(target=call, daemon=True)

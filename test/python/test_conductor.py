@@ -426,18 +426,19 @@ def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_
 OUTSIDE_EAST = ((5.5, -3.0), (10.0, -3.0), (10.0, 3.0), (5.5, 3.0))  # beyond ROOM's door
 
 
-def into_the_room_before(config=None):
-    """looking_around takes the space beyond ROOM's door for a room, whose exit at (3, 0) leads
-    back into ROOM: the robot stands at the pass-through goal (1.5, 0), 1 m inside ROOM; the
-    mission and the actions there."""
-    m = looking_around(config)
+def into_the_room_before(exit_x=3.0, alternatives=()):
+    """looking_around takes the space beyond ROOM's door (5, 0) for a room, whose exit at
+    (exit_x, 0) leads back into ROOM: the robot stands at the pass-through goal 1.5 m past it,
+    inside ROOM; the mission and the actions there."""
+    m = looking_around()
     m.tick(scan_running=False, walls_around=WALLS_ROOM)
     assert m.conductor.rooms == 2
-    actions = m.tick(exit_answered=True, exit_xy=(3.0, 0.0), room_outline=OUTSIDE_EAST)
-    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (3.0, 0.0))]
-    m.tick(robot_xy=(3.0, 0.0), navigator_state="reached")
-    assert m.conductor.goal_xy == pytest.approx((1.5, 0.0))
-    return m, m.tick(robot_xy=(1.5, 0.0), navigator_state="reached")
+    actions = m.tick(exit_answered=True, exit_xy=(exit_x, 0.0), exit_alternatives=alternatives,
+                     room_outline=OUTSIDE_EAST)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (exit_x, 0.0))]
+    m.tick(robot_xy=(exit_x, 0.0), navigator_state="reached")
+    assert m.conductor.goal_xy == pytest.approx((exit_x - 1.5, 0.0))
+    return m, m.tick(robot_xy=(exit_x - 1.5, 0.0), navigator_state="reached")
 
 
 def test_a_room_whose_exit_leads_back_into_the_room_before_was_outside_back_out_there():
@@ -451,6 +452,16 @@ def test_a_room_whose_exit_leads_back_into_the_room_before_was_outside_back_out_
     assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
     assert (m.conductor.phase, m.conductor.reason) == (
         Phase.DONE, "back out where the robot looked around beyond the room before's door")
+
+
+def test_an_exit_leading_back_into_the_room_before_away_from_its_door_was_wrong():
+    # (2, 0) is 3 m from the door come out of, (5, 0): not that door, so the look stood in a room
+    # (seen in random:12, whose loose outline of the first room took in part of the second).
+    m, actions = into_the_room_before(exit_x=2.0, alternatives=((9.0, 3.0),))
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (9.0, 3.0))]
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.GO_TO_EXIT, "passed through (2.00, 0.00) 1.00 m into the room before, 3.00 m from "
+        "the door come out of: not an exit: next candidate (9.00, 3.00)")
 
 
 def test_the_room_before_counts_only_in_the_slam_map_its_outline_was_drawn_in():

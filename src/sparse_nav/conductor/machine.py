@@ -144,6 +144,9 @@ class ConductorConfig:
     inside_room_margin_m: float = 0.5    # passed through yet this far inside the outline: the
     rejected_exit_radius_m: float = 1.0  # ... exit was wrong; later candidates this close to it
                                          # are skipped
+    back_out_door_radius_m: float = 2.5  # passed through a further room's exit back into the
+                                         # room before this close to the door come out of: the
+                                         # same door (back out); farther, the exit was wrong
     stall_timeout_s: float = 30.0        # no progress toward a goal for this long: a goal failure
     stall_progress_m: float = 0.2        # ... progress: this much closer than ever before
     exit_near_m: float = 1.0             # stalled this close to the exit (the point beyond it):
@@ -196,6 +199,7 @@ class ConductorConfig:
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
                      "lost_timeout_s", "recover_timeout_s", "recover_clear_s",
                      "left_room_margin_m", "inside_room_margin_m", "rejected_exit_radius_m",
+                     "back_out_door_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m",
                      "walls_around_range_m", "room_side_walls_min_m", "merge_wait_s",
                      "map_settle_s", "left_room_wait_s", "scan_retry_lost_s"):
@@ -275,10 +279,11 @@ class Conductor:
         self._rescans = 0
         self._door_xy = None  # the exit come through, where the robot looks around
         self._room_before_origin_xy = None  # room_origin_xy of the room the door led out of
-        # The room before's outline, the SLAM map it was drawn in, and where the look that took
-        # the place beyond its door for another room stood.
+        # The room before's outline, the SLAM map it was drawn in, its door come out of, and where
+        # the look that took the place beyond that door for another room stood.
         self._room_before_outline = ()
         self._room_before_map = None
+        self._room_before_door_xy = None
         self._room_look_xy = None
         self._room_unconfirmed = False  # walls all round, no exit of theirs found yet
         # Exits passed through without leaving the room. They hold in every SLAM map: slam_bridge
@@ -780,6 +785,7 @@ class Conductor:
         self.room_origin_xy = obs.robot_xy or self._last_tracked_xy
         self._room_before_outline = tuple(obs.room_outline)
         self._room_before_map = obs.slam_map_index
+        self._room_before_door_xy = self._door_xy
         self._room_look_xy = self.room_origin_xy
         self._exit_viewpoint = "robot"
         self._exit_attempts = 0
@@ -928,18 +934,26 @@ class Conductor:
         return []
 
     def _back_in_room_before(self, t, obs):
-        """Passed through the exit of a room come into, yet inside the room before's outline: that
-        'room' was the space outside, joining the room before's doors. Back out to where the look
-        that took it for a room stood; None when the robot is not in the room before."""
+        """Passed through the exit of a room come into, yet inside the room before's outline.
+        Back through the door come out of, that 'room' was the space outside that door: back out
+        to where the look that took it for a room stood. Through another door, that exit only
+        leads back (a loose outline or a second door between the rooms): it was wrong. None when
+        the robot is not in the room before."""
         cfg = self.config
         if (self.rooms < 2 or len(self._room_before_outline) < 3 or self._room_look_xy is None
+                or self._room_before_door_xy is None
                 or obs.slam_map_index != self._room_before_map):
             return None
         inside = distance_inside(obs.robot_xy, self._room_before_outline)
         if inside < cfg.inside_room_margin_m:
             return None
-        self._room_before_outline = ()
         (ex, ey), (lx, ly) = self.exit_xy, self._room_look_xy
+        from_door = math.dist(self.exit_xy, self._room_before_door_xy)
+        if from_door > cfg.back_out_door_radius_m:
+            return self._wrong_exit(t, f"passed through ({ex:.2f}, {ey:.2f}) {inside:.2f} m into "
+                                       f"the room before, {from_door:.2f} m from the door come "
+                                       f"out of: not an exit")
+        self._room_before_outline = ()
         return self._navigate(t, Phase.BACK_OUT, self._room_look_xy,
                               f"passed through ({ex:.2f}, {ey:.2f}) back into the room before "
                               f"({inside:.2f} m inside its outline): the look around at "

@@ -573,12 +573,13 @@ def test_a_wide_opening_between_side_walls_going_on_past_the_doors_wall_is_anoth
     assert m.conductor.phase == Phase.DONE
 
 
-@pytest.mark.parametrize("losses, phase", [(2, Phase.FIND_EXIT), (3, Phase.DONE)])
+@pytest.mark.parametrize("losses, phase", [(0, Phase.FIND_EXIT), (1, Phase.DONE)])
 def test_side_walls_going_on_do_not_make_a_room_of_a_look_that_often_lost_tracking(losses, phase):
     # Beyond a recessed door the outline's side edges run on outward, along the building or
     # into the wall beyond the exit smeared along the view: side walls, seen by a look losing
     # tracking as a camera facing open space does.
     m = looking_around()
+    m.tick(walls_around=WALLS_OUTSIDE, side_walls_beyond_m=1.2)
     for _ in range(losses):
         m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=40)
         m.tick(tracking_lost=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=1.2)
@@ -587,7 +588,7 @@ def test_side_walls_going_on_do_not_make_a_room_of_a_look_that_often_lost_tracki
     if phase == Phase.DONE:
         assert m.conductor.reason == (
             "passed through the exit: openings up to 150 deg wide around, the room's side walls "
-            "go on 1.2 m past the door's wall; 3 tracking losses looking around, the look in one "
+            "go on 1.2 m past the door's wall; 1 tracking losses looking around, the look in one "
             "SLAM map: too many losses for a room")
 
 
@@ -606,7 +607,7 @@ def test_walls_all_round_are_another_room_whether_or_not_the_side_walls_go_on(si
 
 
 def test_the_side_walls_of_the_last_tracked_look_decide_when_tracking_is_lost_at_its_end():
-    m = looking_around()
+    m = looking_around(ConductorConfig(wall_scan_enabled=False, lossy_look_min_losses=2))
     m.tick(walls_around=WALLS_OUTSIDE, side_walls_beyond_m=2.5)
     m.tick(tracking_lost=True, walls_around=(), side_walls_beyond_m=0.0)
     m.tick(tracking_lost=False, scan_running=False)
@@ -720,27 +721,30 @@ def test_a_partial_look_is_judged_by_its_openings_when_so_configured():
 WALLS_40_DEG_OPENING = (False,) * 8 + (True,) * 64
 
 
-@pytest.mark.parametrize("losses, phase", [(2, Phase.FIND_EXIT), (3, Phase.DONE)])
+@pytest.mark.parametrize("losses, phase", [(0, Phase.FIND_EXIT), (1, Phase.DONE)])
 def test_a_look_around_that_often_lost_tracking_takes_a_40_deg_opening_for_out(losses, phase):
     m = looking_around()
+    m.tick(walls_around=WALLS_40_DEG_OPENING)
     for _ in range(losses):
         m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=40)
         m.tick(tracking_lost=False, walls_around=WALLS_40_DEG_OPENING)
     m.tick(scan_running=False)
     assert m.conductor.phase == phase
     assert "openings up to 40 deg wide" in m.conductor.reason
-    assert f"{losses} tracking losses looking around" in m.conductor.reason
+    assert (f"{losses} tracking losses looking around" in m.conductor.reason) == (losses > 0)
 
 
 def test_sudden_losses_looking_around_do_not_narrow_the_opening_taken_for_out():
     m = looking_around()
-    for tracked in (40, 900, 900):  # one view thinning out, two sudden losses
-        m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=tracked)
+    for _ in range(2):  # a blurred camera, not a view thinning out
+        m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=900)
         m.tick(tracking_lost=False, walls_around=WALLS_40_DEG_OPENING)
     m.tick(scan_running=False)
     assert m.conductor.phase == Phase.FIND_EXIT
-    assert ("1 tracking losses looking around, the look in one SLAM map; 2 sudden tracking losses"
-            in m.conductor.reason)
+    assert m.conductor.reason.startswith(
+        "another room beyond the exit (openings up to 40 deg wide, no room outline")
+    assert "; 2 sudden tracking losses (at least 200 map points tracked) not counted" in \
+        m.conductor.reason
 
 
 def test_tracking_lost_past_the_exit_and_never_back_is_done_inside_the_outline_gave_up():

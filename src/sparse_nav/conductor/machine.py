@@ -176,7 +176,7 @@ class ConductorConfig:
                                          # (a partition's door; a blank wall ahead), unless the
                                          # look is lossy (below); less, or no outline to
                                          # measure them on: the openings decide
-    lossy_look_min_losses: int = 3       # a look around that lost tracking this often judges
+    lossy_look_min_losses: int = 1       # a look around that lost tracking this often judges
     lossy_look_max_opening_deg: float = 37.5  # ... its openings by this limit instead of
                                          # room_max_opening_deg (a 40-deg opening is out),
                                          # whatever the side walls

@@ -765,7 +765,7 @@ def test_tracking_lost_past_the_exit_and_never_back_is_done_inside_the_outline_g
 
 
 def test_the_number_of_rooms_is_bounded():
-    m = looking_around()
+    m = looking_around(ConductorConfig(max_rooms=3))
     m.tick(scan_running=False, walls_around=WALLS_ROOM)
     m.tick(exit_answered=True, exit_xy=(9.0, 3.0))
     m.tick(robot_xy=(9.0, 3.0), navigator_state="reached")

@@ -165,8 +165,9 @@ class ConductorConfig:
                                          # is judged this long after it: a new map often merges
                                          # back within seconds, and a grid seconds old holds
                                          # no room to look for the exit in
-    max_rooms: int = 3                   # rooms escaped in turn; 1: done after the first exit
-                                         # without looking around
+    max_rooms: int = 5                   # rooms escaped in turn; 1: done after the first exit
+                                         # without looking around. A false exit in a room's
+                                         # free middle leads into that room again, and counts
     room_max_opening_deg: float = 42.5   # beyond an exit, openings no wider than this all round
                                          # (the door come through aside): another room; between
                                          # the 5-deg bearings, so 45 deg counts as a way out

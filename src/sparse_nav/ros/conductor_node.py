@@ -18,6 +18,7 @@ from std_srvs.srv import Trigger, TriggerResponse
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observation, Phase,
                                   ScanRunner, ScanRunnerConfig, take_off)
 from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
+from sparse_nav.conductor.outlines import OutlinesByMap
 from sparse_nav.msg import ConductorState, MotionStatus, NavigatorStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
@@ -72,7 +73,7 @@ class ConductorNode:
         self.conductor = Conductor(self.config)
         self.lock = threading.Lock()
         self.obs = Observation(time_s=0.0)
-        self.outlines_by_map = {}  # SLAM map index -> the exit finder's last room outline in it
+        self.outlines = OutlinesByMap()
         self.requests = {"start": self.auto_start, "stop": False, "return": False}
         self.grid = None
         self.took_off = False
@@ -129,9 +130,7 @@ class ConductorNode:
             lost = msg.state == SlamState.LOST  # not initialised is no loss
             previous = self.obs.slam_map_index
             if msg.map_index != previous:
-                # An outline holds in the frame of the map it was drawn in: SLAM merging back
-                # into that map (or relocalising in it) brings it back, a new map has none.
-                self.obs.room_outline = self.outlines_by_map.get(msg.map_index, ())
+                self.obs.room_outline = self.outlines.get(msg.map_index)
                 if previous is not None and not lost and not self.obs.tracking_lost:
                     # No loss in between: SLAM merged the map (or the bridge re-anchored it).
                     self.obs.slam_merges += ((previous, msg.map_index),)
@@ -304,7 +303,8 @@ class ConductorNode:
                                       "" if leads_out else " (none has free space beyond)")
                     if ordered:
                         answer, alternatives = ordered[0], tuple(ordered[1:])
-                    outline = tuple((p.x, p.y) for p in response.candidates.room_outline)
+                # A room without an exit ("no_exit") is still a room to measure against.
+                outline = tuple((p.x, p.y) for p in response.candidates.room_outline)
                 rospy.loginfo("conductor: exit finder: %s (%s)", response.candidates.status,
                               response.candidates.reason)
             except (rospy.ROSException, rospy.ServiceException) as exc:
@@ -315,7 +315,7 @@ class ConductorNode:
                 self.obs.exit_alternatives = alternatives
                 self.obs.exit_leads_out = leads_out
                 self.obs.exit_answered = True
-                self.outlines_by_map[map_index] = outline
+                outline = self.outlines.answered(map_index, outline)
                 if map_index == self.obs.slam_map_index:
                     self.obs.room_outline = outline
         self.exit_thread = threading.Thread(target=call, daemon=True)

@@ -107,8 +107,16 @@ class SimBridgeTest(unittest.TestCase):
         after_loss = names[names.index(SlamState.LOST, first_ok):]
         self.assertTrue(SlamState.NEW_MAP in after_loss or SlamState.OK in after_loss,
                         f"tracking recovers after the loss: {[s.reason for s in states]}")
-        self.assertTrue(all(s.source == self.expect_source for s in states[first_ok:]),
-                        {s.source for s in states})
+        # The bridge infers the state until the wrapper's first tracking_state message arrives;
+        # on a loaded machine a fresh pose can beat it, so only the states from the first one
+        # of the expected source on must all come from it, and the forced loss must be among them.
+        sources = [s.source for s in states]
+        self.assertIn(self.expect_source, sources)
+        first_expected = sources.index(self.expect_source)
+        self.assertTrue(all(s == self.expect_source for s in sources[first_expected:]),
+                        f"the source never falls back once set: {sources}")
+        self.assertIn(SlamState.LOST, names[max(first_ok, first_expected):],
+                      f"the {self.expect_source} state reports the forced loss")
 
         for parent, child in (("map", "base_link"), ("map", "odom"), ("odom", "base_link"),
                               ("base_link", "camera_optical"), ("map", "sim_world")):

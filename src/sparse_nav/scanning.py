@@ -207,6 +207,29 @@ def random_scan(rng, free_distance, config=None):
     return steps + circular_scan(cfg)
 
 
+def steps_to_pose(start, target, min_move_m=0.02, min_turn_deg=1.0):
+    """Steps that take a unicycle from pose start to pose target, both (x_m, y_m, yaw_rad) in
+    one frame that holds still (wheel odometry): turn to the line between them, drive it, turn to
+    the target's heading. A target behind the robot is backed into: a turn on the spot of more
+    than 90 deg sweeps the camera over what SLAM may not have mapped."""
+    (x, y, yaw), (tx, ty, tyaw) = start, target
+    distance = math.hypot(tx - x, ty - y)
+    steps, heading = [], yaw
+    if distance >= min_move_m:
+        face = math.remainder(math.atan2(ty - y, tx - x) - yaw, 2 * math.pi)
+        sign = 1.0
+        if abs(face) > math.pi / 2:
+            face, sign = math.remainder(face + math.pi, 2 * math.pi), -1.0
+        if abs(math.degrees(face)) >= min_turn_deg:
+            steps.append(Step(ccw_deg=math.degrees(face)))
+        steps.append(Step(forward_m=sign * distance))
+        heading = yaw + face
+    turn = math.degrees(math.remainder(tyaw - heading, 2 * math.pi))
+    if abs(turn) >= min_turn_deg:
+        steps.append(Step(ccw_deg=turn))
+    return steps
+
+
 def _tello_move(value_cm, positive, negative):
     return f"{positive if value_cm > 0 else negative} {abs(value_cm)}"
 

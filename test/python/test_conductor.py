@@ -1234,6 +1234,28 @@ def test_repeated_soft_fails_also_undo_the_last_success():
     assert runner.succeeded == [a, b]
 
 
+def test_a_cut_scan_returns_to_where_its_cut_step_began():
+    a, b = Step(forward_m=0.3), Step(ccw_deg=-60.0)
+    runner = ScanRunner([a, b])
+    assert runner.return_steps((0.0, 0.0, 0.0)) == []       # nothing cut yet
+    runner.next_step((0.0, 0.0, 0.0))
+    runner.report(True)
+    runner.next_step((0.3, 0.0, 0.0))
+    assert runner.return_steps((0.3, 0.0, -0.5)) == []      # the step is still in progress
+    runner.interrupt()
+    assert runner.return_steps(None) == []                  # no odometry now
+    assert runner.return_steps((0.9, 0.0, 0.0)) == [Step(forward_m=pytest.approx(-0.6))]
+    assert runner.return_steps((0.3, 0.0, 0.0)) == []       # already there
+    assert runner.return_steps((3.0, 0.0, 0.0)) == []       # too far to trust the way back
+    assert runner.next_step((0.3, 0.0, 0.0)) == (b, 1.0)    # then the cut step from its start
+    never = ScanRunner([a], ScanRunnerConfig(resume_return_max_m=0.0))
+    never.next_step((0.0, 0.0, 0.0))
+    never.interrupt()
+    assert never.return_steps((0.5, 0.0, 0.0)) == []
+    with pytest.raises(ValueError):
+        ScanRunner([a], ScanRunnerConfig(resume_return_max_m=float("nan")))
+
+
 def test_too_many_soft_fails_fail_the_scan():
     runner = ScanRunner([Step(forward_m=0.3)], ScanRunnerConfig(max_total_fails=3))
     run(runner, [False, True, False, True, False])

@@ -1,9 +1,11 @@
-"""The conductor node's recovery motion, run by its scan thread against a stand-in executor (no
-ROS master): a robot the map puts inside an obstacle is moved out of it.
+"""The conductor node's scan thread against a stand-in executor (no ROS master): the recovery
+motion moves a robot the map puts inside an obstacle out of it, and a ground robot's scan cut off
+for relocalising goes on from where its cut step began.
 
 The recovery motion once handed the scan thread a bare list of steps where it expects a
 ScanRunner; the thread died at once, the robot never moved, and the conductor asked again every
 tick until it gave up "inside an obstacle"."""
+import math
 import threading
 
 import numpy as np
@@ -13,15 +15,38 @@ conductor_node = pytest.importorskip("sparse_nav.ros.conductor_node")
 
 from sparse_nav.conductor import Action, ActionKind, Observation  # noqa: E402
 from sparse_nav.conductor.grid_queries import GridView  # noqa: E402
-from sparse_nav.conductor.scan_runner import ScanRunnerConfig  # noqa: E402
+from sparse_nav.conductor.scan_runner import ScanRunner, ScanRunnerConfig  # noqa: E402
+from sparse_nav.scanning import Step  # noqa: E402
+
+
+def moved(pose, step):
+    """Where a Step takes a unicycle at pose (x, y, yaw); a reverse step turns first."""
+    x, y, yaw = pose
+    if step.reverse:
+        yaw += math.radians(step.ccw_deg)
+    x += step.forward_m * math.cos(yaw) - step.left_m * math.sin(yaw)
+    y += step.forward_m * math.sin(yaw) + step.left_m * math.cos(yaw)
+    if not step.reverse:
+        yaw += math.radians(step.ccw_deg)
+    return x, y, yaw
 
 
 class RecordingExecutor:
-    def __init__(self):
-        self.steps = []
+    """Records the steps and moves the odometry pose by each (None: the robot has none);
+    cut_at: the step, by count, during which the scan is stopped (relocalising)."""
+
+    def __init__(self, node, cut_at=None):
+        self.node, self.cut_at = node, cut_at
+        self.steps, self.poses = [], []
 
     def execute(self, step, speed_factor=1.0, should_stop=lambda: False):
         self.steps.append(step)
+        self.poses.append(self.node.odom_pose)
+        if len(self.steps) == self.cut_at:
+            self.node.scan_stop.set()
+            return False
+        if self.node.odom_pose is not None:
+            self.node.odom_pose = moved(self.node.odom_pose, step)
         return True
 
 
@@ -30,7 +55,11 @@ def node_with(grid):
     node = conductor_node.ConductorNode.__new__(conductor_node.ConductorNode)
     node.grid = grid
     node.tello = None
-    node.executor = RecordingExecutor()
+    node.robot = "ground"
+    node.odom_frame = "odom"
+    node.odom_pose = None
+    node._robot_pose = lambda frame=None: node.odom_pose if frame == "odom" else None
+    node.executor = RecordingExecutor(node)
     node.runner_config = ScanRunnerConfig()
     node.scan_thread = None
     node.scan_stop = threading.Event()
@@ -62,3 +91,35 @@ def test_without_a_free_cell_nearby_it_still_moves_aside_and_back():
     node = node_with(None)
     recover(node, (1.0, 1.0, 0.0))
     assert [(s.forward_m, s.ccw_deg) for s in node.executor.steps] == [(0.2, 30.0), (-0.2, 0.0)]
+
+
+def test_a_ground_scan_cut_off_goes_on_from_where_its_cut_step_began():
+    node = node_with(None)
+    node.odom_pose = (0.0, 0.0, 0.0)
+    node.executor.cut_at = 2                  # stopped during the turn, to relocalise
+    steps = [Step(forward_m=0.3), Step(ccw_deg=-60.0), Step(forward_m=0.3)]
+    node._start_runner(ScanRunner(steps, node.runner_config))
+    node.scan_thread.join(timeout=30.0)
+    assert node.paused_scan is not None
+    node.odom_pose = (0.9, 0.4, 1.2)          # where relocalising left the robot
+    node._start_scan("resume", None)
+    node.scan_thread.join(timeout=30.0)
+    assert not node.scan_thread.is_alive() and node.paused_scan is None
+    redone = node.executor.steps.index(steps[1], 2)
+    # Back to (0.3, 0, 0), where the cut turn began, then the turn and the rest of the scan.
+    assert node.executor.poses[redone] == pytest.approx((0.3, 0.0, 0.0), abs=1e-9)
+    assert node.executor.steps[redone:] == steps[1:]
+    assert node.odom_pose == pytest.approx((0.3 + 0.3 * math.cos(math.radians(-60)),
+                                            0.3 * math.sin(math.radians(-60)),
+                                            math.radians(-60)), abs=1e-9)
+
+
+def test_without_odometry_a_cut_scan_goes_on_where_it_is():
+    node = node_with(None)
+    node.executor.cut_at = 2
+    steps = [Step(forward_m=0.3), Step(ccw_deg=-60.0)]
+    node._start_runner(ScanRunner(steps, node.runner_config))
+    node.scan_thread.join(timeout=30.0)
+    node._start_scan("resume", None)
+    node.scan_thread.join(timeout=30.0)
+    assert node.executor.steps == [steps[0], steps[1], steps[1]]

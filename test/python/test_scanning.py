@@ -6,8 +6,8 @@ import pytest
 
 from sparse_nav.scanning import (GROUND_TURN_RATE_RAD_S, InitialScanConfig, RelocaliseConfig, Step,
                                  WallScanConfig, circular_scan, initial_scan, random_scan,
-                                 relocalise, sway, to_tello_commands, to_velocity_segments,
-                                 wall_scan)
+                                 relocalise, steps_to_pose, sway, to_tello_commands,
+                                 to_velocity_segments, wall_scan)
 from sparse_nav.sim import SimConfig, load_world
 from sparse_nav.sim.simulator import Simulator
 from sparse_nav.sim.slam import TrackingState
@@ -170,3 +170,27 @@ def test_default_ground_scan_turns_within_what_the_robot_and_tracking_allow():
     assert fastest == pytest.approx(GROUND_TURN_RATE_RAD_S)
     assert fastest < min(limits.ground_max_angular_rad_s, limits.slam_max_turn_rate_rad_s)
     assert max(abs(v) for v, _, _ in segments) <= limits.ground_max_linear_m_s
+
+
+@pytest.mark.parametrize("start, target", [
+    ((0.0, 0.0, 0.0), (1.0, 0.5, 0.3)),        # ahead: forward
+    ((0.0, 0.0, 0.0), (-0.8, 0.2, -2.5)),      # behind: backed into
+    ((1.0, -1.0, 3.0), (0.4, -0.7, -3.0)),     # headings across +-180 deg
+    ((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),        # on the spot: only the turn
+])
+def test_steps_to_pose_bring_the_unicycle_there(start, target):
+    steps = steps_to_pose(start, target)
+    x, y, th = start
+    for step in steps:  # none sideways; the turn after the translation
+        x += step.forward_m * math.cos(th)
+        y += step.forward_m * math.sin(th)
+        th += math.radians(step.ccw_deg)
+    assert (x, y) == pytest.approx(target[:2], abs=1e-9)
+    assert math.remainder(th - target[2], 2 * math.pi) == pytest.approx(0.0, abs=1e-6)
+    assert all(not s.left_m and not s.reverse and abs(s.ccw_deg) <= 180.0 for s in steps)
+    assert sum(1 for s in steps if s.ccw_deg and abs(s.ccw_deg) > 90.0) <= 1
+
+
+def test_steps_to_pose_back_into_a_target_behind_without_turning_round():
+    assert steps_to_pose((0.0, 0.0, 0.0), (-0.6, 0.0, 0.0)) == [Step(forward_m=-0.6)]
+    assert steps_to_pose((0.2, 0.1, 0.5), (0.2, 0.1, 0.5)) == []

@@ -4,11 +4,15 @@ Every step that succeeds is remembered. A step after which the pose is unknown (
 undone and executed again, slower. After ``max_soft_fails`` soft fails in a row the runner also
 undoes the last step that succeeded, so the robot goes back to where tracking last worked. After
 ``max_total_fails`` soft fails the scan has failed.
+
+A scan cut off (stopped for relocalising) goes on from where its cut step began, when the robot
+has odometry to find that place again: see ``return_steps``.
 """
 import dataclasses
+import math
 from typing import List, Optional, Tuple
 
-from sparse_nav.scanning import Step
+from sparse_nav.scanning import Step, steps_to_pose
 
 
 @dataclasses.dataclass
@@ -17,12 +21,16 @@ class ScanRunnerConfig:
     min_speed_factor: float = 0.25
     max_soft_fails: int = 2       # in a row, before the last success is undone too
     max_total_fails: int = 8      # over the whole scan, before it is given up
+    resume_return_max_m: float = 2.0  # a scan cut off goes back this far at most (m) to where its
+    #                                   cut step began before going on; 0: goes on where it is
 
     def validate(self):
         if not 0 < self.min_speed_factor <= self.slow_factor <= 1:
             raise ValueError("need 0 < min_speed_factor <= slow_factor <= 1")
         if self.max_soft_fails < 1 or self.max_total_fails < 1:
             raise ValueError("max_soft_fails and max_total_fails must be >= 1")
+        if not (math.isfinite(self.resume_return_max_m) and self.resume_return_max_m >= 0):
+            raise ValueError("resume_return_max_m must be finite and >= 0")
 
 
 class ScanRunner:
@@ -43,27 +51,49 @@ class ScanRunner:
         self.soft_fails = 0
         self.total_fails = 0
         self.failed = False
+        self.step_start_pose = None  # where the step in progress, or the one cut off, began
 
     @property
     def done(self):
         return self.failed or (not self._todo and self._current is None)
 
-    def next_step(self):
-        """The next (step, speed_factor), or None when the scan is over (see ``failed``)."""
+    def next_step(self, pose=None):
+        """The next (step, speed_factor), or None when the scan is over (see ``failed``).
+
+        pose: (x_m, y_m, yaw_rad) of the robot as the step begins, in a frame that holds still
+        through SLAM losses (wheel odometry), or None without one."""
         if self._current is not None:
             raise RuntimeError("report() the step in progress first")
         if self.done:
             return None
         self._current = self._todo.pop()
+        self.step_start_pose = pose
         return self._current[0], self._current[1]
 
     def interrupt(self):
         """The step in progress was cut off (the scan stopped for relocalising): the next
         next_step() hands it out again, to be done from its start, and the scan goes on from
-        there. A turn cut halfway so turns a little more than planned; the scan keeps the rest."""
+        there. Without return_steps, a turn cut halfway turns a little more than planned."""
         if self._current is not None:
             self._todo.append(self._current)
             self._current = None
+
+    def return_steps(self, pose):
+        """Steps from pose (as in next_step) back to where the cut step began, before the scan
+        goes on: [] when either place is unknown or they lie farther apart than
+        resume_return_max_m.
+
+        Without them a robot that loses tracking again and again in a scan walks off: each cut
+        step is redone from wherever the relocalising motion left it (a relocalising drive is
+        stopped as soon as tracking is back, up to 0.6 m out), and such a walk ended a ground
+        robot's initial scan 6 m away in a narrow corner, losing tracking there until the time
+        limit (random:46)."""
+        start = self.step_start_pose
+        if pose is None or start is None or self._current is not None \
+                or not self.config.resume_return_max_m \
+                or math.dist(pose[:2], start[:2]) > self.config.resume_return_max_m:
+            return []
+        return steps_to_pose(pose, start)
 
     def report_motion(self, moved: bool, lost: bool):
         """After the step from next_step(): whether the motion was carried out and whether SLAM

@@ -56,6 +56,7 @@ class ConductorNode:
         self.robot = rospy.get_param("~robot", "drone")
         self.map_frame = rospy.get_param("~map_frame", "map")
         self.base_frame = rospy.get_param("~base_frame", "base_link")
+        self.odom_frame = rospy.get_param("~odom_frame", "odom")
         self.rate_hz = float(rospy.get_param("~rate_hz", 2.0))
         self.auto_start = bool(rospy.get_param("~auto_start", False))
         self.min_free_cells = int(rospy.get_param("~map_ready_min_free_cells", 20))
@@ -161,10 +162,11 @@ class ConductorNode:
         with self.lock:
             self.grid = GridView(cells, msg.info.resolution, (o.x, o.y))
 
-    def _robot_pose(self):
-        """(x, y, yaw) of the base in the map frame, or None."""
+    def _robot_pose(self, frame=None):
+        """(x, y, yaw) of the base in the map frame (or the frame given), or None."""
         try:
-            tf = self.tf_buffer.lookup_transform(self.map_frame, self.base_frame, rospy.Time(0))
+            tf = self.tf_buffer.lookup_transform(frame or self.map_frame, self.base_frame,
+                                                 rospy.Time(0))
         except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
                 tf2_ros.ExtrapolationException):
             return None
@@ -254,8 +256,21 @@ class ConductorNode:
                 with self.lock:
                     self.obs.scan_failed = True
                 return
+        # Only the ground robot's odometry holds still through SLAM losses: the drone's odom
+        # frame is SLAM's own.
+        odom_pose = (lambda: self._robot_pose(self.odom_frame)) if self.robot == "ground" \
+            else (lambda: None)
+        back = runner.return_steps(odom_pose())
+        if back:
+            rospy.loginfo("conductor: back to where the cut scan step began (%s)",
+                          ", ".join(f"{s.forward_m:+.2f} m" if s.forward_m else
+                                    f"{s.ccw_deg:+.0f} deg" for s in back))
+        for step in back:
+            if self.scan_stop.is_set():
+                break
+            self.executor.execute(step, should_stop=self.scan_stop.is_set)
         while not self.scan_stop.is_set() and not rospy.is_shutdown():
-            item = runner.next_step()
+            item = runner.next_step(odom_pose())
             if item is None:
                 break
             step, speed = item

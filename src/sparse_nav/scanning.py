@@ -207,6 +207,20 @@ def random_scan(rng, free_distance, config=None):
     return steps + circular_scan(cfg)
 
 
+def pose_after(pose, steps):
+    """Where Steps take a robot from pose (x_m, y_m, yaw_rad): each translates in the robot
+    frame, then turns (a reverse step turns first)."""
+    x, y, yaw = pose
+    for step in steps:
+        if step.reverse:
+            yaw += math.radians(step.ccw_deg)
+        x += step.forward_m * math.cos(yaw) - step.left_m * math.sin(yaw)
+        y += step.forward_m * math.sin(yaw) + step.left_m * math.cos(yaw)
+        if not step.reverse:
+            yaw += math.radians(step.ccw_deg)
+    return x, y, math.remainder(yaw, 2 * math.pi)
+
+
 def steps_to_pose(start, target, min_move_m=0.02, min_turn_deg=1.0):
     """Steps that take a unicycle from pose start to pose target, both (x_m, y_m, yaw_rad) in
     one frame that holds still (wheel odometry): turn to the line between them, drive it, turn to

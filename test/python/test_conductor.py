@@ -5,7 +5,7 @@ import pytest
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, ExitRequest,
                                   Observation, Phase, ScanRunner, ScanRunnerConfig, State,
                                   take_off)
-from sparse_nav.scanning import Step
+from sparse_nav.scanning import Step, pose_after
 
 
 def kinds(actions):
@@ -1254,6 +1254,45 @@ def test_a_cut_scan_returns_to_where_its_cut_step_began():
     assert never.return_steps((0.5, 0.0, 0.0)) == []
     with pytest.raises(ValueError):
         ScanRunner([a], ScanRunnerConfig(resume_return_max_m=float("nan")))
+
+
+def test_a_scan_cut_twice_at_one_place_skips_to_the_end_of_its_turn():
+    a, turn, b, last = (Step(forward_m=0.3), Step(ccw_deg=-60.0), Step(left_m=0.3),
+                        Step(ccw_deg=-60.0))
+    runner = ScanRunner([a, turn, b, last])
+    runner.next_step((0.0, 0.0, 0.0))
+    runner.report(True)
+    for _ in range(2):                     # the turn faces a blank wall: cut off twice
+        assert runner.next_step((0.3, 0.0, 0.0)) == (turn, 1.0)
+        runner.interrupt()
+    assert runner.skipped == [turn]
+    # on from where the skipped turn ends: turned on the spot
+    assert runner.return_steps((0.5, 0.0, 0.0)) == [Step(forward_m=pytest.approx(-0.2)),
+                                                    Step(ccw_deg=pytest.approx(-60.0))]
+    assert runner.next_step() == (b, 1.0)
+
+
+def test_a_skip_takes_the_retries_of_the_place_with_it():
+    a, b, turn, c = Step(forward_m=0.3), Step(left_m=0.3), Step(ccw_deg=-60.0), Step(forward_m=0.2)
+    runner = ScanRunner([a, b, turn, c], ScanRunnerConfig(cuts_before_skip=2))
+    runner.next_step((0.0, 0.0, 0.0))
+    runner.report(True)
+    runner.next_step((0.3, 0.0, 0.0))
+    runner.report(False)                   # b lost tracking: undone, then tried again
+    assert runner.next_step((0.3, 0.3, 0.0)) == (b.undo(), 0.5)
+    runner.interrupt()                     # cut off undoing it, then again
+    assert runner.next_step((0.3, 0.3, 0.0)) == (b.undo(), 0.5)
+    runner.interrupt()
+    assert runner.skipped == [b, turn]     # not the undo, which was never part of the scan
+    x, y, yaw = pose_after((0.3, 0.3, 0.0), [b.undo(), b, turn])
+    assert runner.return_steps((x, y, yaw)) == []
+    assert runner.next_step() == (c, 1.0)
+    never = ScanRunner([a, turn], ScanRunnerConfig(cuts_before_skip=0))
+    for _ in range(5):
+        assert never.next_step() == (a, 1.0)
+        never.interrupt()
+    with pytest.raises(ValueError):
+        ScanRunnerConfig(cuts_before_skip=-1).validate()
 
 
 def test_too_many_soft_fails_fail_the_scan():

@@ -16,19 +16,7 @@ conductor_node = pytest.importorskip("sparse_nav.ros.conductor_node")
 from sparse_nav.conductor import Action, ActionKind, Observation  # noqa: E402
 from sparse_nav.conductor.grid_queries import GridView  # noqa: E402
 from sparse_nav.conductor.scan_runner import ScanRunner, ScanRunnerConfig  # noqa: E402
-from sparse_nav.scanning import Step  # noqa: E402
-
-
-def moved(pose, step):
-    """Where a Step takes a unicycle at pose (x, y, yaw); a reverse step turns first."""
-    x, y, yaw = pose
-    if step.reverse:
-        yaw += math.radians(step.ccw_deg)
-    x += step.forward_m * math.cos(yaw) - step.left_m * math.sin(yaw)
-    y += step.forward_m * math.sin(yaw) + step.left_m * math.cos(yaw)
-    if not step.reverse:
-        yaw += math.radians(step.ccw_deg)
-    return x, y, yaw
+from sparse_nav.scanning import Step, pose_after  # noqa: E402
 
 
 class RecordingExecutor:
@@ -46,7 +34,7 @@ class RecordingExecutor:
             self.node.scan_stop.set()
             return False
         if self.node.odom_pose is not None:
-            self.node.odom_pose = moved(self.node.odom_pose, step)
+            self.node.odom_pose = pose_after(self.node.odom_pose, [step])
         return True
 
 

@@ -6,7 +6,7 @@ import pytest
 
 from sparse_nav.scanning import (GROUND_TURN_RATE_RAD_S, InitialScanConfig, RelocaliseConfig, Step,
                                  WallScanConfig, circular_scan, initial_scan, random_scan,
-                                 relocalise, steps_to_pose, sway, to_tello_commands,
+                                 pose_after, relocalise, steps_to_pose, sway, to_tello_commands,
                                  to_velocity_segments, wall_scan)
 from sparse_nav.sim import SimConfig, load_world
 from sparse_nav.sim.simulator import Simulator
@@ -180,11 +180,7 @@ def test_default_ground_scan_turns_within_what_the_robot_and_tracking_allow():
 ])
 def test_steps_to_pose_bring_the_unicycle_there(start, target):
     steps = steps_to_pose(start, target)
-    x, y, th = start
-    for step in steps:  # none sideways; the turn after the translation
-        x += step.forward_m * math.cos(th)
-        y += step.forward_m * math.sin(th)
-        th += math.radians(step.ccw_deg)
+    x, y, th = pose_after(start, steps)
     assert (x, y) == pytest.approx(target[:2], abs=1e-9)
     assert math.remainder(th - target[2], 2 * math.pi) == pytest.approx(0.0, abs=1e-6)
     assert all(not s.left_m and not s.reverse and abs(s.ccw_deg) <= 180.0 for s in steps)
@@ -194,3 +190,12 @@ def test_steps_to_pose_bring_the_unicycle_there(start, target):
 def test_steps_to_pose_back_into_a_target_behind_without_turning_round():
     assert steps_to_pose((0.0, 0.0, 0.0), (-0.6, 0.0, 0.0)) == [Step(forward_m=-0.6)]
     assert steps_to_pose((0.2, 0.1, 0.5), (0.2, 0.1, 0.5)) == []
+
+
+def test_pose_after_follows_the_unicycle_and_an_undo_comes_back():
+    steps = [Step(forward_m=0.3), Step(left_m=0.3, ccw_deg=20.0), Step(ccw_deg=-60.0)]
+    x, y, th = _drive(to_velocity_segments(steps, turn_rate_rad_s=1e6), n=10)
+    # turns so fast that their 5 cm/s creep moves nothing: straight lines and turns on the spot
+    assert pose_after((0.0, 0.0, 0.0), steps) == pytest.approx((x, y, th), abs=1e-3)
+    back = [s.undo() for s in reversed(steps)]
+    assert pose_after((1.0, 2.0, 0.5), steps + back) == pytest.approx((1.0, 2.0, 0.5), abs=1e-9)

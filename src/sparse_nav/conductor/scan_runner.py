@@ -6,13 +6,15 @@ undoes the last step that succeeded, so the robot goes back to where tracking la
 ``max_total_fails`` soft fails the scan has failed.
 
 A scan cut off (stopped for relocalising) goes on from where its cut step began, when the robot
-has odometry to find that place again: see ``return_steps``.
+has odometry to find that place again (see ``return_steps``); cut off again and again at one place,
+it skips to the end of that place's turn (see ``interrupt``).
 """
+import collections
 import dataclasses
 import math
 from typing import List, Optional, Tuple
 
-from sparse_nav.scanning import Step, steps_to_pose
+from sparse_nav.scanning import Step, pose_after, steps_to_pose
 
 
 @dataclasses.dataclass
@@ -23,6 +25,8 @@ class ScanRunnerConfig:
     max_total_fails: int = 8      # over the whole scan, before it is given up
     resume_return_max_m: float = 2.0  # a scan cut off goes back this far at most (m) to where its
     #                                   cut step began before going on; 0: goes on where it is
+    cuts_before_skip: int = 2     # a scan cut off this often at one place skips to the end of
+    #                               the turn that place belongs to; 0: never
 
     def validate(self):
         if not 0 < self.min_speed_factor <= self.slow_factor <= 1:
@@ -31,6 +35,8 @@ class ScanRunnerConfig:
             raise ValueError("max_soft_fails and max_total_fails must be >= 1")
         if not (math.isfinite(self.resume_return_max_m) and self.resume_return_max_m >= 0):
             raise ValueError("resume_return_max_m must be finite and >= 0")
+        if self.cuts_before_skip < 0:
+            raise ValueError("cuts_before_skip must be >= 0")
 
 
 class ScanRunner:
@@ -45,13 +51,19 @@ class ScanRunner:
         self.config = config or ScanRunnerConfig()
         self.config.validate()
         self.while_lost = while_lost
-        self._todo: List[Tuple[Step, float, bool]] = [(s, 1.0, True) for s in reversed(steps)]
-        self._current: Optional[Tuple[Step, float, bool]] = None
+        # (step, speed factor, its place in the scan: None for a step that undoes another)
+        self._todo: List[Tuple[Step, float, Optional[int]]] = [
+            (s, 1.0, k) for k, s in reversed(list(enumerate(steps)))]
+        self._current: Optional[Tuple[Step, float, Optional[int]]] = None
         self.succeeded: List[Step] = []
+        self._succeeded_at: List[int] = []
+        self.skipped: List[Step] = []  # passed over where the view could not be tracked
+        self._cuts = collections.Counter()  # per place in the scan
         self.soft_fails = 0
         self.total_fails = 0
         self.failed = False
-        self.step_start_pose = None  # where the step in progress, or the one cut off, began
+        self.step_start_pose = None  # where the step in progress began
+        self._resume_pose = None     # where the scan cut off goes on from
 
     @property
     def done(self):
@@ -67,33 +79,59 @@ class ScanRunner:
         if self.done:
             return None
         self._current = self._todo.pop()
-        self.step_start_pose = pose
+        self.step_start_pose, self._resume_pose = pose, None
         return self._current[0], self._current[1]
 
     def interrupt(self):
         """The step in progress was cut off (the scan stopped for relocalising): the next
         next_step() hands it out again, to be done from its start, and the scan goes on from
-        there. Without return_steps, a turn cut halfway turns a little more than planned."""
-        if self._current is not None:
-            self._todo.append(self._current)
-            self._current = None
+        there. Without return_steps, a turn cut halfway turns a little more than planned.
+
+        Cut off cuts_before_skip times at one place in the scan, the scan skips to the end of
+        the turn that place belongs to: a view that loses tracking every time (a nearly blank
+        wall, a wall up close) would otherwise cost a relocalising round per try, up to the
+        conductor's max_scan_resumes, and the robot is no wiser at the end."""
+        if self._current is None:
+            return
+        self._todo.append(self._current)
+        self._current = None
+        self._resume_pose = self.step_start_pose
+        place = next((k for _, _, k in reversed(self._todo) if k is not None), None)
+        self._cuts[place] += 1
+        if self.config.cuts_before_skip and self._cuts[place] >= self.config.cuts_before_skip:
+            self._skip_turn()
+
+    def _skip_turn(self):
+        """Drops the steps to do up to the end of the next turn of the scan, and moves the
+        place to go on from to where they would have ended."""
+        passed = []
+        while self._todo:
+            step, _, place = self._todo.pop()
+            passed.append(step)
+            if place is not None:
+                self.skipped.append(step)
+                if step.ccw_deg and not step.forward_m and not step.left_m:
+                    break
+        self.soft_fails = 0
+        if self._resume_pose is not None:
+            self._resume_pose = pose_after(self._resume_pose, passed)
 
     def return_steps(self, pose):
-        """Steps from pose (as in next_step) back to where the cut step began, before the scan
-        goes on: [] when either place is unknown or they lie farther apart than
-        resume_return_max_m.
+        """Steps from pose (as in next_step) to where the scan cut off goes on (where its cut
+        step began, or where the turn it skipped ends), before it goes on: [] when either place
+        is unknown or they lie farther apart than resume_return_max_m.
 
         Without them a robot that loses tracking again and again in a scan walks off: each cut
         step is redone from wherever the relocalising motion left it (a relocalising drive is
         stopped as soon as tracking is back, up to 0.6 m out), and such a walk ended a ground
         robot's initial scan 6 m away in a narrow corner, losing tracking there until the time
         limit (random:46)."""
-        start = self.step_start_pose
-        if pose is None or start is None or self._current is not None \
+        target = self._resume_pose
+        if pose is None or target is None or self._current is not None \
                 or not self.config.resume_return_max_m \
-                or math.dist(pose[:2], start[:2]) > self.config.resume_return_max_m:
+                or math.dist(pose[:2], target[:2]) > self.config.resume_return_max_m:
             return []
-        return steps_to_pose(pose, start)
+        return steps_to_pose(pose, target)
 
     def report_motion(self, moved: bool, lost: bool):
         """After the step from next_step(): whether the motion was carried out and whether SLAM
@@ -104,12 +142,14 @@ class ScanRunner:
         """After the step from next_step(): pose_known False is a soft fail."""
         if self._current is None:
             raise RuntimeError("no step in progress")
-        step, speed, counts = self._current
+        step, speed, place = self._current
         self._current = None
         if pose_known:
-            if counts:  # an undo step neither ends a run of fails nor becomes part of the scan
+            # An undo step neither ends a run of fails nor becomes part of the scan.
+            if place is not None:
                 self.soft_fails = 0
                 self.succeeded.append(step)
+                self._succeeded_at.append(place)
             return
         self.soft_fails += 1
         self.total_fails += 1
@@ -117,12 +157,12 @@ class ScanRunner:
             self.failed = True
             return
         slower = max(self.config.min_speed_factor, speed * self.config.slow_factor)
-        retry = [(step.undo(), slower, False), (step, slower, counts)]
+        retry = [(step.undo(), slower, None), (step, slower, place)]
         if self.soft_fails >= self.config.max_soft_fails and self.succeeded:
-            last = self.succeeded.pop()
+            last, last_at = self.succeeded.pop(), self._succeeded_at.pop()
             # Back past the last success, then do it again, then the failing step.
-            retry = [(step.undo(), slower, False), (last.undo(), slower, False),
-                     (last, slower, True), (step, slower, counts)]
+            retry = [(step.undo(), slower, None), (last.undo(), slower, None),
+                     (last, slower, last_at), (step, slower, place)]
             self.soft_fails = 0
         self._todo.extend(reversed(retry))
 

@@ -262,7 +262,7 @@ class ConductorNode:
             else (lambda: None)
         back = runner.return_steps(odom_pose())
         if back:
-            rospy.loginfo("conductor: back to where the cut scan step began (%s)",
+            rospy.loginfo("conductor: back to where the scan goes on (%s)",
                           ", ".join(f"{s.forward_m:+.2f} m" if s.forward_m else
                                     f"{s.ccw_deg:+.0f} deg" for s in back))
         for step in back:
@@ -276,7 +276,13 @@ class ConductorNode:
             step, speed = item
             done = self.executor.execute(step, speed, should_stop=self.scan_stop.is_set)
             if self.scan_stop.is_set():
+                skipped = len(runner.skipped)
                 runner.interrupt()
+                if len(runner.skipped) > skipped:
+                    rospy.loginfo("conductor: the scan was cut off at one place %d times: it "
+                                  "skips %d steps, to the end of that place's turn",
+                                  self.runner_config.cuts_before_skip,
+                                  len(runner.skipped) - skipped)
                 break
             rospy.sleep(0.5)  # the bridge's state catches up with the last motion
             with self.lock:

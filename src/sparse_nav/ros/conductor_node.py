@@ -276,18 +276,18 @@ class ConductorNode:
             step, speed = item
             done = self.executor.execute(step, speed, should_stop=self.scan_stop.is_set)
             if self.scan_stop.is_set():
-                skipped = len(runner.skipped)
-                runner.interrupt()
-                if len(runner.skipped) > skipped:
-                    rospy.loginfo("conductor: the scan was cut off at one place %d times: it "
-                                  "skips %d steps, to the end of that place's turn",
-                                  self.runner_config.cuts_before_skip,
-                                  len(runner.skipped) - skipped)
                 break
             rospy.sleep(0.5)  # the bridge's state catches up with the last motion
             with self.lock:
                 lost = self.obs.tracking_lost
             runner.report_motion(done, lost)
+        if self.scan_stop.is_set():
+            skipped = len(runner.skipped)
+            runner.interrupt(odom_pose())
+            if len(runner.skipped) > skipped:
+                rospy.loginfo("conductor: the scan was cut off at one place %d times: it skips "
+                              "%d steps, to the end of that place's turn",
+                              self.runner_config.cuts_before_skip, len(runner.skipped) - skipped)
         with self.lock:
             self.obs.scan_failed = runner.failed
             if (resumable and self.scan_stop.is_set() and not runner.while_lost

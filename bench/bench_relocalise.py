@@ -19,7 +19,7 @@ losses:
 The free distance that picks the ground robot's side comes from the true walls here, where the
 conductor reads it from its last occupancy grid; what is mapped in view counts the lost map's
 points (SLAM's estimates, put in the world by the truth) within the camera's width and reach,
-where the conductor counts the grid's occupied cells. Reads nothing from ../shared. About 5 min of
+where the conductor counts the grid's occupied cells. Reads nothing from ../shared. About 7 min of
 wall time for the defaults; writes bench/results/relocalise.json.
 
     /usr/bin/python3 bench/bench_relocalise.py --robots ground drone --worlds 10 --seeds 3

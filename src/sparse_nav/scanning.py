@@ -83,23 +83,15 @@ class RelocaliseConfig:
     min_baseline_m: float = 0.2  # drive at least this far, even where the map shows less room
     standoff_m: float = 0.4    # keep this far from the wall ahead on the map (m)
     turn_deg: float = 60.0     # turn after each try, so the next sees other features
-    view_half_angle_deg: float = 40.0  # ground robot: the camera's view on the grid, half its
-    view_range_m: float = 5.0          # width (deg) and its reach (m) ...
-    min_mapped_cells: int = 10         # ... and the least of the grid's walls (occupied cells) in
-    #                                    the richest view for the robot to face it first
 
     def validate(self):
         if not 0 < self.min_baseline_m <= self.baseline_m:
             raise ValueError("need 0 < min_baseline_m <= baseline_m")
         if self.standoff_m < 0:
             raise ValueError("standoff_m must be >= 0")
-        if not 0 < abs(self.turn_deg) <= 180:
-            raise ValueError("need 0 < |turn_deg| <= 180")
-        if not (0 < self.view_half_angle_deg <= 180 and self.view_range_m > 0):
-            raise ValueError("need 0 < view_half_angle_deg <= 180 and view_range_m > 0")
 
 
-def relocalise(robot, free_distance=None, config=None, sway_config=None, mapped_in_view=None):
+def relocalise(robot, free_distance=None, config=None, sway_config=None):
     """One try of the motion that lets monocular SLAM start a new map after a loss, then a turn.
 
     A new map needs a baseline of about 8 % of the depth of the features the camera sees,
@@ -109,39 +101,18 @@ def relocalise(robot, free_distance=None, config=None, sway_config=None, mapped_
     0.3 m: too short beyond 4 m of depth. It drives straight instead, out and back along its
     heading, into whichever side has more room (free_distance(bearing_deg) -> free metres, as in
     random_scan; None: forward).
-
-    mapped_in_view(bearing_deg) -> how much of the last grid's walls the camera would see facing
-    that bearing. Given it, the ground robot first turns to the richest of the bearings the
-    trailing turns would reach, straight ahead left out (where it lost tracking, or tried last),
-    and tries there: a blank wall has too few features to start a new map on, and merging it
-    back into the lost map needs that map's points in view. Where the grid shows too little
-    anywhere, it tries ahead and turns after.
     """
     cfg = config or RelocaliseConfig()
     cfg.validate()
     turn = Step(ccw_deg=cfg.turn_deg)
     if robot == "drone":
         return sway(sway_config) + [turn]
-    bearing = _richest_bearing(mapped_in_view, cfg) if mapped_in_view else None
-    ahead = free_distance(bearing or 0.0) if free_distance else math.inf
-    behind = free_distance((bearing or 0.0) + 180.0) if free_distance else 0.0
+    ahead = free_distance(0.0) if free_distance else math.inf
+    behind = free_distance(180.0) if free_distance else 0.0
     sign = 1.0 if ahead >= behind else -1.0
     room = max(ahead, behind) - cfg.standoff_m
     distance = round(min(cfg.baseline_m, max(cfg.min_baseline_m, room)), 2)
-    out_back = [Step(forward_m=sign * distance), Step(forward_m=-sign * distance)]
-    if bearing is None:
-        return out_back + [turn]
-    return [Step(ccw_deg=bearing)] + out_back
-
-
-def _richest_bearing(mapped_in_view, cfg):
-    """The bearing (deg, in (-180, 180]) among the multiples of turn_deg but 0 with the most in
-    view, the smaller turn on a tie; None when none has min_mapped_cells."""
-    tries = int(round(360.0 / abs(cfg.turn_deg)))
-    bearings = [(k * cfg.turn_deg + 180.0) % 360.0 - 180.0 for k in range(1, tries)]
-    bearings = [180.0 if b == -180.0 else b for b in bearings]
-    best = max(bearings, key=lambda b: (mapped_in_view(b), -abs(b)))
-    return best if mapped_in_view(best) >= cfg.min_mapped_cells else None
+    return [Step(forward_m=sign * distance), Step(forward_m=-sign * distance), turn]
 
 
 def initial_scan(config=None):

@@ -111,17 +111,3 @@ def test_without_odometry_a_cut_scan_goes_on_where_it_is():
     node._start_scan("resume", None)
     node.scan_thread.join(timeout=30.0)
     assert node.executor.steps == [steps[0], steps[1], steps[1]]
-
-
-def test_the_ground_robot_relocalises_facing_the_walls_its_last_grid_shows():
-    cells = np.zeros((100, 100), dtype=np.int8)
-    cells[70, 30:45] = 100                    # 1.5 m of wall 2 m left of (0, 0), behind it
-    grid = GridView(cells=cells, resolution_m=0.1, origin_xy=(-5.0, -5.0))
-    node = node_with(grid)
-    node.relocalise_config = conductor_node.RelocaliseConfig()
-    node.initial_config = conductor_node.InitialScanConfig()
-    turn, out, back = node._scan_steps("relocalise", (0.0, 0.0, 0.0))
-    assert turn == Step(ccw_deg=120.0)
-    assert out.forward_m == -back.forward_m != 0.0
-    node.robot = "drone"
-    assert node._scan_steps("relocalise", (0.0, 0.0, 0.0))[-1] == Step(ccw_deg=60.0)

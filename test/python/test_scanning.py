@@ -138,27 +138,6 @@ def test_the_ground_robot_relocalises_straight_into_the_side_with_room():
         relocalise("ground", config=RelocaliseConfig(baseline_m=0.1))
 
 
-def test_the_ground_robot_relocalises_facing_the_most_mapped_walls_but_ahead():
-    walls = {0.0: 500, 60.0: 40, 120.0: 90, 180.0: 90, -120.0: 90, -60.0: 10}
-    tries = relocalise("ground", lambda bearing: 3.0, mapped_in_view=walls.get)
-    # Ahead is where tracking was lost or last tried; of the ties, the smaller turn.
-    assert tries == [Step(ccw_deg=120.0), Step(forward_m=0.6), Step(forward_m=-0.6)]
-    # The room is measured along the new heading.
-    room = {120.0: 0.5, 300.0: 2.0}
-    backwards = relocalise("ground", lambda bearing: room.get(bearing % 360.0, 3.0),
-                           mapped_in_view=walls.get)
-    assert backwards[1:] == [Step(forward_m=-0.6), Step(forward_m=0.6)]
-    cw = relocalise("ground", config=RelocaliseConfig(turn_deg=-90.0),
-                    mapped_in_view=lambda bearing: 30 if bearing == -90.0 else 20)
-    assert cw[0] == Step(ccw_deg=-90.0)
-    # A grid with too little on it anywhere: ahead, then turn.
-    bare = relocalise("ground", mapped_in_view=lambda bearing: 9)
-    assert bare == relocalise("ground")
-    assert relocalise("drone", mapped_in_view=walls.get) == relocalise("drone")
-    with pytest.raises(ValueError, match="turn_deg"):
-        relocalise("ground", config=RelocaliseConfig(turn_deg=0.0))
-
-
 def test_relocalising_starts_a_new_map_after_a_forced_loss_in_the_simulator():
     """The ground robot, lost in its first sway, stops; standing still, SLAM cannot start a new
     map (no baseline); the relocalising motion gets it one."""

@@ -12,15 +12,10 @@ losses:
 - ``sway``: the seed 000 sway and a 60 deg turn, the conductor's motion for both robots before
   ``scanning.relocalise``;
 - ``relocalise``: ``scanning.relocalise`` (the drone: the same sway; the ground robot: straight
-  out and back into the side with more room);
-- ``facing``: the ground robot's ``scanning.relocalise`` facing the views
-  ``scanning.RelocaliseViews`` picks from what it would see of the lost map per bearing: the
-  richest view not yet tried in the loss first (the drone's motion is the same as above).
+  out and back into the side with more room).
 
 The free distance that picks the ground robot's side comes from the true walls here, where the
-conductor reads it from its last occupancy grid; what is mapped in view counts the lost map's
-points (SLAM's estimates, put in the world by the truth) within the camera's width and reach,
-where the conductor counts the grid's occupied cells. Reads nothing from ../shared. About 5 min of
+conductor reads it from its last occupancy grid. Reads nothing from ../shared. About 5 min of
 wall time for the defaults; writes bench/results/relocalise.json.
 
     /usr/bin/python3 bench/bench_relocalise.py --robots ground drone --worlds 10 --seeds 3
@@ -38,9 +33,8 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "src"))
 
-from sparse_nav.scanning import (RelocaliseConfig, RelocaliseViews, Step,  # noqa: E402
-                                 initial_scan, relocalise, sway, to_tello_commands,
-                                 to_velocity_segments)
+from sparse_nav.scanning import (RelocaliseConfig, Step, initial_scan, relocalise,  # noqa: E402
+                                 sway, to_tello_commands, to_velocity_segments)
 from sparse_nav.sim import SimConfig, load_world  # noqa: E402
 from sparse_nav.sim.simulator import Simulator  # noqa: E402
 from sparse_nav.sim.slam import TrackingState  # noqa: E402
@@ -61,8 +55,6 @@ class Run:
         self.robot = robot
         self.lost_at_s = None
         self.back_at_s = None
-        self.lost_map_xy = np.zeros((0, 2))   # the lost map's points in the world (m)
-        self.views = RelocaliseViews()         # the views the tries of its one loss faced
         self._segs, _heights = world.obstacle_segments()
         if robot == "drone":
             for command in ("command", "takeoff"):
@@ -75,9 +67,6 @@ class Run:
         if self.lost_at_s is None and out.state in (TrackingState.LOST, TrackingState.RECENTLY_LOST) \
                 and self.sim.tracking_losses > 0:
             self.lost_at_s = self.sim.time_s
-            points = self.sim.slam_to_world(out.all_points) if len(out.all_points) else None
-            if points is not None:
-                self.lost_map_xy = points[:, :2]
         elif self.lost_at_s is not None and self.back_at_s is None and out.state in TRACKING:
             self.back_at_s = self.sim.time_s
 
@@ -127,23 +116,10 @@ class Run:
             d += 0.05
         return max_m
 
-    def mapped_in_view(self, bearing_deg, config=RelocaliseConfig()):
-        """The lost map's points within the camera's width and reach facing that bearing."""
-        x, y, _z, yaw = self.sim.true_base_pose()
-        d = self.lost_map_xy - (x, y)
-        r = np.hypot(d[:, 0], d[:, 1])
-        off = np.abs((np.arctan2(d[:, 1], d[:, 0]) - yaw - math.radians(bearing_deg) + math.pi)
-                     % (2.0 * math.pi) - math.pi)
-        return int(np.count_nonzero((r >= 0.3) & (r <= config.view_range_m)
-                                    & (off <= math.radians(config.view_half_angle_deg))))
-
 
 def motion_steps(name, run):
     if name == "sway":
         return sway() + [Step(ccw_deg=RelocaliseConfig().turn_deg)]
-    if name == "facing":
-        bearing = run.views.next_deg(run.sim.true_base_pose()[3], run.mapped_in_view)
-        return relocalise(run.robot, run.free_distance, face_deg=bearing)
     return relocalise(run.robot, run.free_distance)
 
 
@@ -208,7 +184,7 @@ def summarise(rows, limit_s):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--robots", nargs="+", default=["ground", "drone"])
-    parser.add_argument("--motions", nargs="+", default=["sway", "relocalise", "facing"])
+    parser.add_argument("--motions", nargs="+", default=["sway", "relocalise"])
     parser.add_argument("--after-s", type=float, default=30.0,
                         help="sim-s of the scan after tracking is back, watched for a merge")
     parser.add_argument("--worlds", type=int, default=10, help="random:1 .. random:N")

@@ -83,23 +83,15 @@ class RelocaliseConfig:
     min_baseline_m: float = 0.2  # drive at least this far, even where the map shows less room
     standoff_m: float = 0.4    # keep this far from the wall ahead on the map (m)
     turn_deg: float = 60.0     # turn after each try, so the next sees other features
-    view_half_angle_deg: float = 40.0  # ground robot: the camera's view on the grid, half its
-    view_range_m: float = 5.0          # width (deg) and its reach (m) ...
-    min_mapped_cells: int = 10         # ... and the least of the grid's walls (occupied cells) in
-    #                                    the richest view for the robot to face it first
 
     def validate(self):
         if not 0 < self.min_baseline_m <= self.baseline_m:
             raise ValueError("need 0 < min_baseline_m <= baseline_m")
         if self.standoff_m < 0:
             raise ValueError("standoff_m must be >= 0")
-        if not 0 < abs(self.turn_deg) <= 180:
-            raise ValueError("need 0 < |turn_deg| <= 180")
-        if not (0 < self.view_half_angle_deg <= 180 and self.view_range_m > 0):
-            raise ValueError("need 0 < view_half_angle_deg <= 180 and view_range_m > 0")
 
 
-def relocalise(robot, free_distance=None, config=None, sway_config=None, face_deg=None):
+def relocalise(robot, free_distance=None, config=None, sway_config=None):
     """One try of the motion that lets monocular SLAM start a new map after a loss, then a turn.
 
     A new map needs a baseline of about 8 % of the depth of the features the camera sees,
@@ -108,84 +100,19 @@ def relocalise(robot, free_distance=None, config=None, sway_config=None, face_de
     (the initialiser's reference frame is lost with the view), so that its straight legs are
     0.3 m: too short beyond 4 m of depth. It drives straight instead, out and back along its
     heading, into whichever side has more room (free_distance(bearing_deg) -> free metres, as in
-    random_scan; None: forward). face_deg (see richest_view_deg): the ground robot first turns
-    to that bearing and tries there, no turn after.
+    random_scan; None: forward).
     """
     cfg = config or RelocaliseConfig()
     cfg.validate()
     turn = Step(ccw_deg=cfg.turn_deg)
     if robot == "drone":
         return sway(sway_config) + [turn]
-    bearing = face_deg or 0.0
-    ahead = free_distance(bearing) if free_distance else math.inf
-    behind = free_distance(bearing + 180.0) if free_distance else 0.0
+    ahead = free_distance(0.0) if free_distance else math.inf
+    behind = free_distance(180.0) if free_distance else 0.0
     sign = 1.0 if ahead >= behind else -1.0
     room = max(ahead, behind) - cfg.standoff_m
     distance = round(min(cfg.baseline_m, max(cfg.min_baseline_m, room)), 2)
-    out_back = [Step(forward_m=sign * distance), Step(forward_m=-sign * distance)]
-    if not face_deg:
-        return out_back + [turn]
-    return [Step(ccw_deg=face_deg)] + out_back
-
-
-def relocalise_views_deg(config=None, tried_deg=()):
-    """The bearings (deg, in (-180, 180]) the trailing turns of relocalise would reach, straight
-    ahead (where tracking was lost or last tried) and those within half a turn of tried_deg
-    left out."""
-    cfg = config or RelocaliseConfig()
-    cfg.validate()
-    tries = int(round(360.0 / abs(cfg.turn_deg)))
-    bearings = [(k * cfg.turn_deg + 180.0) % 360.0 - 180.0 for k in range(1, tries)]
-    half = abs(cfg.turn_deg) / 2.0
-    return [180.0 if b == -180.0 else b for b in bearings
-            if all(abs((b - t + 180.0) % 360.0 - 180.0) >= half for t in tried_deg)]
-
-
-def richest_view_deg(mapped_in_view, config=None, views_deg=None):
-    """Where a ground robot's relocalising try should face: of views_deg (default: every
-    relocalise_views_deg), the one with the most mapped_in_view(bearing_deg) (how much of the
-    last grid's walls the camera would see), the smaller turn on a tie; None when there is none
-    or none shows min_mapped_cells.
-
-    A blank wall has too few features to start a new SLAM map on, and merging that map back
-    into the lost one needs the lost map's points in view. Leaving out every view a loss's tries
-    faced makes the tries go all the way round, best first, as the blind turns did (leaving out
-    only the last one, a robot turned between the same two views for 60 s).
-    """
-    cfg = config or RelocaliseConfig()
-    views = relocalise_views_deg(cfg) if views_deg is None else views_deg
-    if not views:
-        return None
-    best = max(views, key=lambda b: (mapped_in_view(b), -abs(b)))
-    return best if mapped_in_view(best) >= cfg.min_mapped_cells else None
-
-
-class RelocaliseViews:
-    """The views a ground robot's relocalising tries face through one loss: each the richest
-    not yet tried (see richest_view_deg), all the way round, then again; reset when tracking is
-    back. Headings in any frame that holds still through the loss (rad)."""
-
-    def __init__(self, config=None):
-        self.config = config or RelocaliseConfig()
-        self.tried_yaw = []
-
-    def reset(self):
-        self.tried_yaw = []
-
-    def next_deg(self, yaw, mapped_in_view):
-        """The bearing (deg) the try at heading yaw faces, None: ahead, turning after (the
-        blind try, where the views left show too little; its heading counts as tried once the
-        robot has turned away from it)."""
-        tried = [math.degrees(t - yaw) for t in self.tried_yaw]
-        views = relocalise_views_deg(self.config, tried)
-        if not views:  # every view tried: a new round
-            self.tried_yaw, views = [], relocalise_views_deg(self.config)
-        if not self.tried_yaw:
-            self.tried_yaw.append(yaw)  # where tracking was lost: tried
-        bearing = richest_view_deg(mapped_in_view, self.config, views)
-        if bearing is not None:
-            self.tried_yaw.append(yaw + math.radians(bearing))
-        return bearing
+    return [Step(forward_m=sign * distance), Step(forward_m=-sign * distance), turn]
 
 
 def initial_scan(config=None):

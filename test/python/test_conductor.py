@@ -1272,21 +1272,6 @@ def test_a_scan_cut_twice_at_one_place_skips_to_the_end_of_its_turn():
     assert runner.next_step() == (b, 1.0)
 
 
-def test_a_scan_stopped_between_steps_or_on_its_way_back_goes_on_from_the_right_place():
-    a, turn, b = Step(forward_m=0.3), Step(ccw_deg=-60.0), Step(forward_m=0.2)
-    runner = ScanRunner([a, turn, b])
-    runner.next_step((0.0, 0.0, 0.0))
-    runner.report(True)
-    runner.interrupt((0.3, 0.0, 0.0))      # stopped between a and the turn: on from there
-    moved = (0.3, 0.5, 1.0)                # by relocalising
-    assert pose_after(moved, runner.return_steps(moved)) == pytest.approx((0.3, 0.0, 0.0))
-    for _ in range(2):                     # stopped on the way back, twice: still on from
-        assert runner.return_steps(moved)  # there, and the second cut there skips the turn
-        runner.interrupt(moved)
-    assert runner.skipped == [turn]
-    assert runner.next_step() == (b, 1.0)
-
-
 def test_a_skip_takes_the_retries_of_the_place_with_it():
     a, b, turn, c = Step(forward_m=0.3), Step(left_m=0.3), Step(ccw_deg=-60.0), Step(forward_m=0.2)
     runner = ScanRunner([a, b, turn, c], ScanRunnerConfig(cuts_before_skip=2))

@@ -169,18 +169,3 @@ def test_side_walls_beyond_a_door_show_the_building_going_on():
     # No outline, or no door: nothing to go on from.
     assert _building(3.0).side_walls_beyond_m((), (4.0, 2.0)) is None
     assert _building(3.0).side_walls_beyond_m(OUTLINE, None) is None
-
-
-def test_occupied_in_view_counts_the_walls_a_camera_would_face():
-    cells = np.zeros((100, 100), dtype=np.int8)
-    cells[40:60, 70] = 100           # a 2 m wall 2 m ahead of (0, 0), at +-27 deg
-    cells[45:55, 90] = 100           # and 1 m of wall behind it
-    grid = GridView(cells, 0.1, (-5.0, -5.0))
-    half = math.radians(40.0)
-    assert grid.occupied_in_view(0.0, 0.0, 0.0, half, 5.0) == 30
-    assert grid.occupied_in_view(0.0, 0.0, 0.0, half, 3.0) == 20       # out of reach
-    # Turned 20 deg left, the view begins 20 deg right: the wall from y = -0.65 m on.
-    assert grid.occupied_in_view(0.0, 0.0, math.radians(20.0), half, 3.0) == 17
-    assert grid.occupied_in_view(0.0, 0.0, math.pi / 2, half, 5.0) == 0
-    assert grid.occupied_in_view(0.0, 0.0, math.pi, half, 5.0) == 0
-    assert grid.occupied_in_view(1.9, 0.0, 0.0, half, 5.0, min_m=0.3) == 10  # too close to see

@@ -7,7 +7,6 @@ ScanRunner; the thread died at once, the robot never moved, and the conductor as
 tick until it gave up "inside an obstacle"."""
 import math
 import threading
-import types
 
 import numpy as np
 import pytest
@@ -112,27 +111,3 @@ def test_without_odometry_a_cut_scan_goes_on_where_it_is():
     node._start_scan("resume", None)
     node.scan_thread.join(timeout=30.0)
     assert node.executor.steps == [steps[0], steps[1], steps[1]]
-
-
-def test_the_ground_robot_relocalises_facing_the_walls_its_last_grid_shows():
-    cells = np.zeros((100, 100), dtype=np.int8)
-    cells[70, 20:50] = 100                    # 3 m of wall 2 m left of (0, 0), behind it
-    cells[20:40, 80] = 100                    # and 2 m of wall ahead, right of (0, 0)
-    grid = GridView(cells=cells, resolution_m=0.1, origin_xy=(-5.0, -5.0))
-    node = node_with(grid)
-    node.relocalise_config = conductor_node.RelocaliseConfig()
-    node.initial_config = conductor_node.InitialScanConfig()
-    node.relocalise_views = conductor_node.RelocaliseViews(node.relocalise_config)
-    turn, out, back = node._scan_steps("relocalise", (0.0, 0.0, 0.0))
-    assert turn == Step(ccw_deg=120.0)        # the most wall in view, ahead left out
-    assert out.forward_m == -back.forward_m != 0.0
-    # Still lost, the next try faces the next best view, not the one just tried.
-    pose = (0.0, 0.0, math.radians(120.0))
-    assert node._scan_steps("relocalise", pose)[0] == Step(ccw_deg=180.0)   # to -60 deg
-    # Tracking back, a new loss tries every view again.
-    node.outlines = {}
-    node._on_slam_state(types.SimpleNamespace(state=conductor_node.SlamState.OK, map_index=0,
-                                              n_tracked_points=100))
-    assert node.relocalise_views.tried_yaw == []
-    node.robot = "drone"
-    assert node._scan_steps("relocalise", (0.0, 0.0, 0.0))[-1] == Step(ccw_deg=60.0)

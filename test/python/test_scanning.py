@@ -6,10 +6,8 @@ import pytest
 
 from sparse_nav.scanning import (GROUND_TURN_RATE_RAD_S, InitialScanConfig, RelocaliseConfig, Step,
                                  WallScanConfig, circular_scan, initial_scan, random_scan,
-                                 pose_after, relocalise, relocalise_views_deg, richest_view_deg,
-                                 RelocaliseViews,
-                                 steps_to_pose, sway, to_tello_commands, to_velocity_segments,
-                                 wall_scan)
+                                 pose_after, relocalise, steps_to_pose, sway, to_tello_commands,
+                                 to_velocity_segments, wall_scan)
 from sparse_nav.sim import SimConfig, load_world
 from sparse_nav.sim.simulator import Simulator
 from sparse_nav.sim.slam import TrackingState
@@ -138,55 +136,6 @@ def test_the_ground_robot_relocalises_straight_into_the_side_with_room():
     assert boxed_in[0] == Step(forward_m=0.2)  # min_baseline_m: a try moves all the same
     with pytest.raises(ValueError, match="min_baseline_m"):
         relocalise("ground", config=RelocaliseConfig(baseline_m=0.1))
-
-
-def test_the_ground_robot_relocalises_facing_the_most_mapped_walls_not_yet_tried():
-    walls = {0.0: 500, 60.0: 40, 120.0: 90, 180.0: 90, -120.0: 90, -60.0: 9}
-    # Ahead is where tracking was lost; of the ties, the smaller turn.
-    assert relocalise_views_deg() == [60.0, 120.0, 180.0, -120.0, -60.0]
-    assert richest_view_deg(walls.get) == 120.0
-    # Every view this loss's tries faced is left out, so that the tries go all the way round.
-    assert relocalise_views_deg(tried_deg=[100.0, -140.0, 175.0]) == [60.0, -60.0]
-    assert richest_view_deg(walls.get, views_deg=relocalise_views_deg(tried_deg=[120.0])) == -120.0
-    assert richest_view_deg(walls.get, views_deg=[60.0, -60.0]) == 60.0
-    assert richest_view_deg(walls.get, views_deg=[-60.0]) is None  # 9 cells: too little
-    assert richest_view_deg(walls.get, views_deg=[]) is None
-    assert relocalise_views_deg(tried_deg=[60.0, 120.0, 180.0, -120.0, -60.0]) == []
-    assert richest_view_deg(lambda bearing: 9) is None  # too little on the grid anywhere
-    cw = RelocaliseConfig(turn_deg=-90.0)
-    assert relocalise_views_deg(cw) == [-90.0, 180.0, 90.0]
-    assert richest_view_deg(lambda bearing: 30 if bearing == -90.0 else 20, cw) == -90.0
-    assert relocalise("ground", lambda bearing: 3.0, face_deg=120.0) == [
-        Step(ccw_deg=120.0), Step(forward_m=0.6), Step(forward_m=-0.6)]
-    # The room is measured along the new heading.
-    room = {120.0: 0.5, 300.0: 2.0}
-    backwards = relocalise("ground", lambda bearing: room.get(bearing % 360.0, 3.0),
-                           face_deg=120.0)
-    assert backwards[1:] == [Step(forward_m=-0.6), Step(forward_m=0.6)]
-    assert relocalise("drone", face_deg=120.0) == relocalise("drone")
-    with pytest.raises(ValueError, match="turn_deg"):
-        relocalise_views_deg(RelocaliseConfig(turn_deg=0.0))
-
-
-def test_a_losss_relocalising_tries_face_every_view_best_first_then_go_round_again():
-    walls = {0: 500, 60: 40, 120: 90, 180: 90, 240: 80, 300: 9}   # by heading (deg)
-    views = RelocaliseViews()
-    pose = (0.0, 0.0, 0.0)                     # lost facing 0 deg: that view counts as tried
-    faced = []
-    for _ in range(5):
-        heading = math.degrees(pose[2])
-        bearing = views.next_deg(pose[2], lambda b: walls[int(round(heading + b)) % 360])
-        faced.append(None if bearing is None else int(round(heading + bearing)) % 360)
-        pose = pose_after(pose, relocalise("ground", face_deg=bearing))
-    # 120 and 180 tie (the smaller turn first); then 240 and 60; 300 shows too little: a blind
-    # try ahead, turning after.
-    assert faced == [120, 180, 240, 60, None]
-    # Every view tried, a new round from the best.
-    views.tried_yaw = [math.radians(b) for b in range(0, 360, 60)]
-    assert views.next_deg(0.0, lambda b: walls[int(round(b)) % 360]) == 120.0
-    assert len(views.tried_yaw) == 2
-    views.reset()
-    assert views.tried_yaw == []
 
 
 def test_relocalising_starts_a_new_map_after_a_forced_loss_in_the_simulator():

@@ -79,17 +79,6 @@ class GridView:
         ys = y + np.outer(np.sin(bearings), distances)
         return np.any(self.values_at(xs, ys) >= occupied_at, axis=1)
 
-    def occupied_in_view(self, x, y, heading_rad, half_angle_rad, max_m, min_m=0.3,
-                         occupied_at=50):
-        """Occupied cells within half_angle_rad of heading and min_m..max_m of (x, y): how much
-        mapped wall a camera there would face (walls behind walls count too)."""
-        rows, cols = np.nonzero(self.cells >= occupied_at)
-        dx = self.origin_xy[0] + (cols + 0.5) * self.resolution_m - x
-        dy = self.origin_xy[1] + (rows + 0.5) * self.resolution_m - y
-        d = np.hypot(dx, dy)
-        off = np.abs((np.arctan2(dy, dx) - heading_rad + math.pi) % (2.0 * math.pi) - math.pi)
-        return int(np.count_nonzero((d >= min_m) & (d <= max_m) & (off <= half_angle_rad)))
-
     def values_at(self, xs, ys):
         """Cell values at the points (xs, ys) (arrays of one shape); -1 (unknown) off the map."""
         cols = np.floor((xs - self.origin_xy[0]) / self.resolution_m).astype(int)

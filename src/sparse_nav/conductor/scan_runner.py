@@ -82,24 +82,20 @@ class ScanRunner:
         self.step_start_pose, self._resume_pose = pose, None
         return self._current[0], self._current[1]
 
-    def interrupt(self, pose=None):
-        """The scan stopped for relocalising. The step in progress was cut off: the next
+    def interrupt(self):
+        """The step in progress was cut off (the scan stopped for relocalising): the next
         next_step() hands it out again, to be done from its start, and the scan goes on from
         there. Without return_steps, a turn cut halfway turns a little more than planned.
-        Stopped between two steps, the scan goes on from pose (as in next_step), where it stood;
-        stopped on the way back to where it goes on, from there still, and the cut counts.
 
         Cut off cuts_before_skip times at one place in the scan, the scan skips to the end of
         the turn that place belongs to: a view that loses tracking every time (a nearly blank
         wall, a wall up close) would otherwise cost a relocalising round per try, up to the
         conductor's max_scan_resumes, and the robot is no wiser at the end."""
-        if self._current is not None:
-            self._todo.append(self._current)
-            self._current = None
-            self._resume_pose = self.step_start_pose
-        elif self._resume_pose is None:
-            self._resume_pose = pose
+        if self._current is None:
             return
+        self._todo.append(self._current)
+        self._current = None
+        self._resume_pose = self.step_start_pose
         place = next((k for _, _, k in reversed(self._todo) if k is not None), None)
         self._cuts[place] += 1
         if self.config.cuts_before_skip and self._cuts[place] >= self.config.cuts_before_skip:

@@ -26,8 +26,7 @@ from sparse_nav.ros.robot_io import StepExecutor, TelloClient
 from sparse_nav.scanning import (GROUND_INITIAL_SCAN_TURN_DEG, GROUND_SPEED_M_S,
                                  GROUND_TURN_RATE_RAD_S, InitialScanConfig,
                                  RelocaliseConfig, Step, WallScanConfig, circular_scan,
-                                 RelocaliseViews, initial_scan, random_scan, relocalise,
-                                 wall_scan)
+                                 initial_scan, random_scan, relocalise, wall_scan)
 from sparse_nav.srv import FindExit
 
 # Navigator action states as the conductor names them.
@@ -52,24 +51,6 @@ def _free_distance(grid, pose, off_map_free=False):
                                                   off_map_free=off_map_free)
 
 
-def _steps_text(steps):
-    """'+0.60 m' forward, '+0.30 m left', '+60 deg' ccw, per step."""
-    return ", ".join(" ".join(part for value, part in (
-        (s.forward_m, f"{s.forward_m:+.2f} m"), (s.left_m, f"{s.left_m:+.2f} m left"),
-        (s.ccw_deg, f"{s.ccw_deg:+.0f} deg")) if value) or "0" for s in steps)
-
-
-def _mapped_in_view(grid, pose, config):
-    """mapped_in_view(bearing_deg) -> occupied cells a camera at pose turned by bearing would
-    face on the grid; None without both."""
-    if grid is None or pose is None:
-        return None
-    x, y, yaw = pose
-    half = math.radians(config.view_half_angle_deg)
-    return lambda bearing_deg: grid.occupied_in_view(x, y, yaw + math.radians(bearing_deg), half,
-                                                     config.view_range_m)
-
-
 class ConductorNode:
     def __init__(self):
         self.robot = rospy.get_param("~robot", "drone")
@@ -92,7 +73,6 @@ class ConductorNode:
 
         self.conductor = Conductor(self.config)
         self.lock = threading.Lock()
-        self.relocalise_views = RelocaliseViews(self.relocalise_config)
         self.obs = Observation(time_s=0.0)
         self.outlines = OutlinesByMap()
         self.requests = {"start": self.auto_start, "stop": False, "return": False}
@@ -156,8 +136,6 @@ class ConductorNode:
                     # No loss in between: SLAM merged the map (or the bridge re-anchored it).
                     self.obs.slam_merges += ((previous, msg.map_index),)
             self.obs.tracking_lost = lost
-            if not lost:
-                self.relocalise_views.reset()  # a new loss tries every view again
             self.obs.slam_map_index = msg.map_index
             self.obs.slam_tracked_points = msg.n_tracked_points
 
@@ -233,28 +211,18 @@ class ConductorNode:
             return circular_scan(self.wall_config)
         if name == "relocalise":
             # 004's LOST: look and move around. Each try also turns, so that a robot stuck
-            # facing a bare wall ends up looking at the mapped room again (the ground robot turns
-            # first, to where its last grid shows the most walls in view). The last grid, with
+            # facing a bare wall ends up looking at the mapped room again. The last grid, with
             # the pose tf still gives, tells the ground robot which way there is room to drive;
             # past its edge is unknown, not a wall: the grid of a SLAM map seconds old is small,
             # and its edge would cut every drive to min_baseline_m, too short for a new map.
             return relocalise(self.robot, _free_distance(grid, pose, off_map_free=True),
-                              self.relocalise_config, self.initial_config,
-                              self._relocalise_view(grid, pose))
+                              self.relocalise_config, self.initial_config)
         if grid is None or pose is None:
             return initial_scan(self.initial_config)  # nothing to aim at yet
         room = _free_distance(grid, pose)
         if name == "wall":
             return wall_scan([(b, room(b)) for b in self.wall_bearings_deg], self.wall_config)
         return random_scan(self.rng, room, self.wall_config)
-
-    def _relocalise_view(self, grid, pose):
-        """The bearing the ground robot's next relocalising try faces (None: ahead)."""
-        mapped = _mapped_in_view(grid, pose, self.relocalise_config)
-        if self.robot != "ground" or mapped is None:
-            return None
-        with self.lock:
-            return self.relocalise_views.next_deg(pose[2], mapped)
 
     def _start_scan(self, name, pose):
         self._stop_scan()
@@ -268,8 +236,7 @@ class ConductorNode:
             if name != "relocalise":
                 self.paused_scan = None  # a new phase scan replaces the stopped one
             steps = self._scan_steps(name, pose)
-            rospy.loginfo("conductor: %s scan, %d steps%s", name, len(steps),
-                          f" ({_steps_text(steps)})" if name == "relocalise" else "")
+            rospy.loginfo("conductor: %s scan, %d steps", name, len(steps))
             runner = ScanRunner(steps, self.runner_config, while_lost=name == "relocalise")
         self._start_runner(runner)
 
@@ -295,7 +262,9 @@ class ConductorNode:
             else (lambda: None)
         back = runner.return_steps(odom_pose())
         if back:
-            rospy.loginfo("conductor: back to where the scan goes on (%s)", _steps_text(back))
+            rospy.loginfo("conductor: back to where the scan goes on (%s)",
+                          ", ".join(f"{s.forward_m:+.2f} m" if s.forward_m else
+                                    f"{s.ccw_deg:+.0f} deg" for s in back))
         for step in back:
             if self.scan_stop.is_set():
                 break
@@ -307,18 +276,18 @@ class ConductorNode:
             step, speed = item
             done = self.executor.execute(step, speed, should_stop=self.scan_stop.is_set)
             if self.scan_stop.is_set():
+                skipped = len(runner.skipped)
+                runner.interrupt()
+                if len(runner.skipped) > skipped:
+                    rospy.loginfo("conductor: the scan was cut off at one place %d times: it "
+                                  "skips %d steps, to the end of that place's turn",
+                                  self.runner_config.cuts_before_skip,
+                                  len(runner.skipped) - skipped)
                 break
             rospy.sleep(0.5)  # the bridge's state catches up with the last motion
             with self.lock:
                 lost = self.obs.tracking_lost
             runner.report_motion(done, lost)
-        if self.scan_stop.is_set():
-            skipped = len(runner.skipped)
-            runner.interrupt(odom_pose())
-            if len(runner.skipped) > skipped:
-                rospy.loginfo("conductor: the scan was cut off at one place %d times: it skips "
-                              "%d steps, to the end of that place's turn",
-                              self.runner_config.cuts_before_skip, len(runner.skipped) - skipped)
         with self.lock:
             self.obs.scan_failed = runner.failed
             if (resumable and self.scan_stop.is_set() and not runner.while_lost

@@ -115,22 +115,6 @@ def relocalise(robot, free_distance=None, config=None, sway_config=None):
     return [Step(forward_m=sign * distance), Step(forward_m=-sign * distance), turn]
 
 
-def face_then_relocalise(robot, pose, target_xy, free_distance=None, config=None,
-                         sway_config=None):
-    """A turn that faces target_xy from pose (x, y, yaw; none within 1 deg, or without both),
-    then one :func:`relocalise` try from that heading: the way to merge back into a map whose
-    points lie that way. free_distance(bearing_deg) is relative to pose's heading, as there."""
-    turn = []
-    if pose is not None and target_xy is not None:
-        x, y, yaw = pose
-        bearing = math.atan2(target_xy[1] - y, target_xy[0] - x) - yaw
-        deg = round(math.degrees(math.atan2(math.sin(bearing), math.cos(bearing))))
-        turn = [Step(ccw_deg=float(deg))] if deg else []
-    offset = turn[0].ccw_deg if turn else 0.0
-    turned = (lambda b: free_distance(b + offset)) if free_distance else None
-    return turn + relocalise(robot, turned, config, sway_config)
-
-
 def initial_scan(config=None):
     """The seed 000 initial scan as a list of Steps (a, b, c, d, e per iteration until a full turn)."""
     cfg = config or InitialScanConfig()

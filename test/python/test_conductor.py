@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from sparse_nav.conductor import (Action, ActionKind, Conductor, ConductorConfig, ExitRequest,
+from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, ExitRequest,
                                   Observation, Phase, ScanRunner, ScanRunnerConfig, State,
                                   take_off)
 from sparse_nav.scanning import Step, pose_after
@@ -653,74 +653,11 @@ def partial_look(config=None, merged=False, tracked_at_loss=None):
     return m
 
 
-def no_merge_back(m):
-    """A look around that says out in a map other than the door's: the robot faces the door and
-    relocalises for look_merge_wait_s, and SLAM never merges back."""
-    assert (m.conductor.phase, m.conductor.state) == (Phase.LOOK_AROUND, State.START)
-    m.tick(scan_running=True)
-    m.tick(dt=m.conductor.config.look_merge_wait_s)
-    assert m.conductor.phase == Phase.LOOK_AROUND
-    assert kinds(m.tick(dt=1.0)) == [ActionKind.STOP]  # out of time: the motion stops first
-    return m.tick(scan_running=False)
-
-
 def test_a_look_around_ending_in_a_slam_map_begun_during_it_is_out():
     m = partial_look()
-    verdict = ("passed through the exit: tracking lost looking around (1 losses), and the look "
-               "ended in SLAM map 1, begun since, not in map 0: too little around to track, out")
-    assert m.conductor.reason == (
-        "the look around says out, but in SLAM map 1, not the door's map 0: facing the door "
-        "come through until they merge (at most 20 s)")
-    assert kinds(no_merge_back(m)) == [ActionKind.STOP]
     assert (m.conductor.phase, m.conductor.reason) == (
-        Phase.DONE, f"{verdict} (no merge back into the door's SLAM map within 20 s)")
-
-
-def test_an_out_look_in_a_new_map_faces_the_door_and_relocalises_until_the_wait_ends():
-    m = partial_look()
-    door = m.conductor.door_xy
-    assert door == (5.0, 0.0)
-    # Each try of the motion (a turn to the door, a relocalise try) ends; another follows.
-    m.tick(scan_running=True)
-    assert m.tick(scan_running=False) == [Action(ActionKind.SCAN, "face_door")]
-    assert m.tick() == []  # asked for, not begun yet
-    m.tick(scan_running=True)
-    # Lost and back while waiting: not losses of the look.
-    m.tick(tracking_lost=True, slam_tracked_points=40)
-    m.tick(tracking_lost=False, slam_map_index=1)
-    assert m.conductor.phase == Phase.LOOK_AROUND
-    m.tick(dt=20.0)
-    m.tick(scan_running=False)
-    assert m.conductor.phase == Phase.DONE
-    assert "tracking lost looking around (1 losses)" in m.conductor.reason
-
-
-def test_an_out_look_in_a_new_map_that_merges_back_is_judged_again_on_the_doors_map():
-    m = partial_look()
-    m.tick(scan_running=True, walls_around=WALLS_OUTSIDE)
-    m.tick(tracking_lost=True, slam_tracked_points=40)  # lost while waiting: not the look's
-    # Merged back into map 0: its grid holds the room beyond and the outline the side walls.
-    m.tick(tracking_lost=False, slam_map_index=0, slam_merges=((1, 0),), walls_around=WALLS_ROOM,
-           side_walls_beyond_m=2.0)
-    assert kinds(m.tick()) == [ActionKind.STOP]  # merged: the motion stops
-    assert m.tick(scan_running=False) == []  # the merged map's grid settles first
-    actions = m.tick(dt=m.conductor.config.map_settle_s)
-    assert kinds(actions) == [ActionKind.FIND_EXIT]
-    assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
-    assert m.conductor.reason.startswith("another room beyond the exit (openings up to 30 deg "
-                                         "wide, the room's side walls go on 2.0 m")
-    assert "; 1 tracking losses looking around, the look in one SLAM map" in m.conductor.reason
-    assert any(tr.reason == "SLAM merged back into the door's map 0: the look around is judged "
-                            "again there" for tr in m.conductor.history)
-
-
-def test_an_out_look_judged_in_the_doors_map_or_with_the_wait_off_is_done_at_once():
-    m = partial_look(ConductorConfig(wall_scan_enabled=False, look_merge_wait_s=0.0))
-    assert m.conductor.phase == Phase.DONE
-    assert m.conductor.reason.endswith("too little around to track, out")
-    m = looking_around()
-    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, slam_map_index=0)
-    assert m.conductor.phase == Phase.DONE
+        Phase.DONE, "passed through the exit: tracking lost looking around (1 losses), and the "
+        "look ended in SLAM map 1, begun since, not in map 0: too little around to track, out")
 
 
 def test_a_sudden_loss_does_not_make_a_look_partial_a_view_thinning_out_does():
@@ -731,7 +668,6 @@ def test_a_sudden_loss_does_not_make_a_look_partial_a_view_thinning_out_does():
             in m.conductor.reason)
     assert "tracking losses looking around" not in m.conductor.reason
     m = partial_look(tracked_at_loss=199)
-    no_merge_back(m)
     assert m.conductor.phase == Phase.DONE
     assert "tracking lost looking around (1 losses)" in m.conductor.reason
 
@@ -744,7 +680,6 @@ def test_a_partial_look_names_the_map_it_began_in_even_when_the_new_one_holds_mo
         m.tick(tracking_lost=False, slam_map_index=1, walls_around=WALLS_ROOM)
     m.tick(scan_running=False)
     m.tick(dt=10.0)
-    no_merge_back(m)
     assert m.conductor.phase == Phase.DONE
     assert "look ended in SLAM map 1, begun since, not in map 0:" in m.conductor.reason
 

@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 from sparse_nav.scanning import (GROUND_TURN_RATE_RAD_S, InitialScanConfig, RelocaliseConfig, Step,
-                                 WallScanConfig, circular_scan, face_then_relocalise,
-                                 initial_scan, random_scan,
+                                 WallScanConfig, circular_scan, initial_scan, random_scan,
                                  pose_after, relocalise, steps_to_pose, sway, to_tello_commands,
                                  to_velocity_segments, wall_scan)
 from sparse_nav.sim import SimConfig, load_world
@@ -137,22 +136,6 @@ def test_the_ground_robot_relocalises_straight_into_the_side_with_room():
     assert boxed_in[0] == Step(forward_m=0.2)  # min_baseline_m: a try moves all the same
     with pytest.raises(ValueError, match="min_baseline_m"):
         relocalise("ground", config=RelocaliseConfig(baseline_m=0.1))
-
-
-def test_facing_a_point_turns_the_short_way_then_relocalises_from_the_new_heading():
-    # At (1, 0) heading +y: a door at (0, 0) lies 90 deg to the left, one at (1, -2) behind.
-    assert face_then_relocalise("drone", (1.0, 0.0, math.pi / 2), (0.0, 0.0)) == \
-        [Step(ccw_deg=90.0)] + relocalise("drone")
-    assert face_then_relocalise("drone", (1.0, 0.0, math.pi / 2), (1.0, -2.0))[0] in \
-        (Step(ccw_deg=180.0), Step(ccw_deg=-180.0))
-    assert face_then_relocalise("drone", (0.0, 0.0, 0.0), (3.0, 0.01)) == relocalise("drone")
-    assert face_then_relocalise("drone", None, (1.0, 1.0)) == relocalise("drone")
-    assert face_then_relocalise("drone", (0.0, 0.0, 0.0), None) == relocalise("drone")
-    # The ground robot's room to drive is read along its heading after the turn: 90 deg to the
-    # left of the heading it had, where a wall stands 0.5 m away.
-    steps = face_then_relocalise("ground", (0.0, 0.0, 0.0), (0.0, 2.0),
-                                 lambda bearing: 0.5 if bearing == 90.0 else 3.0)
-    assert steps[:3] == [Step(ccw_deg=90.0), Step(forward_m=-0.6), Step(forward_m=0.6)]
 
 
 def test_relocalising_starts_a_new_map_after_a_forced_loss_in_the_simulator():

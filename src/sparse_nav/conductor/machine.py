@@ -52,8 +52,7 @@ class Phase(enum.Enum):
 
 class ActionKind(enum.Enum):
     SCAN = "scan"            # payload: scan name ("initial", "wall", "random", "relocalise",
-                             # "look_around"; "resume": go on with the scan a loss cut;
-                             # "face_door": face the door come through, then relocalise)
+                             # "look_around"; "resume": go on with the scan a loss cut)
     FIND_EXIT = "find_exit"  # ask the exit finder; payload: an ExitRequest
     GOAL = "goal"            # payload: (x, y) in the map frame
     CANCEL_GOAL = "cancel_goal"
@@ -187,12 +186,6 @@ class ConductorConfig:
                                          # its openings on a few seconds of map: out (done)
                                          # instead; beyond a door a camera loses tracking
                                          # in open space, and rarely in a room
-    look_merge_wait_s: float = 20.0      # a look around judged "out" in another SLAM map than
-                                         # the door's (begun by a loss, never merged back)
-                                         # stands only after the robot faced the door come
-                                         # through and relocalised this long without a merge;
-                                         # merged, the look is judged again on the door's map,
-                                         # its room outline and all the look mapped. 0: off
     sudden_loss_min_tracked_points: int = 200  # a loss with this many map points tracked at
                                          # it (a blurred or covered camera, not a view with too
                                          # little in it) is no sign of open space: a look
@@ -214,9 +207,6 @@ class ConductorConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
-        if not (math.isfinite(self.look_merge_wait_s) and self.look_merge_wait_s >= 0):
-            raise ValueError(f"look_merge_wait_s must be finite and >= 0, got "
-                             f"{self.look_merge_wait_s}")
         if not 0 <= self.exit_check_near_m < self.exit_check_far_m < math.inf:
             raise ValueError("need 0 <= exit_check_near_m < exit_check_far_m (finite)")
         if not 0 <= self.scan_map_min_share <= 1:
@@ -337,17 +327,10 @@ class Conductor:
         # highest seen, and the highest seen when the present look around began.
         self._max_map_index = None
         self._look_known_map_index = None
-        # An "out" verdict waiting for a merge back into the door's map: since when, the
-        # verdict, and the look's losses when it was reached (those while waiting are no part of
-        # the look); tried once per look.
-        self._look_merge_since_s = None
-        self._look_verdict = ""
-        self._look_loss_counts = (0, 0)
-        self._look_merge_tried = False
 
     def _scan(self, name):
         """The SCAN action; _start_state waits for it to begin, then to end."""
-        if name not in ("relocalise", "resume", "face_door"):
+        if name not in ("relocalise", "resume"):
             self._scan_resumes = 0
             self._scan_tracked_s = {}
         self._scan_kind = name
@@ -431,7 +414,6 @@ class Conductor:
         self._alternatives_map = self._merge_wait_since_s = None
         self._rescans = 0
         self._last_look = ((), None)
-        self._look_merge_since_s = None
         self._outside_by = 0.0
         self._room_unconfirmed = False
         self.exit_xy = self.goal_xy = None
@@ -649,8 +631,6 @@ class Conductor:
 
     def _start_state(self, t, obs):
         cfg = self.config
-        if self._look_merge_since_s is not None and self.phase == Phase.LOOK_AROUND:
-            return self._look_merge_wait(t, obs)
         if obs.scan_running:
             self._scan_started = True
             return []
@@ -735,8 +715,6 @@ class Conductor:
         self._last_look = ((), None)
         self._look_losses = self._look_sudden_losses = 0
         self._look_known_map_index = self._max_map_index
-        self._look_merge_since_s = None
-        self._look_merge_tried = False
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
@@ -763,10 +741,11 @@ class Conductor:
         partial = self._look_losses > 0 and not one_map and begun_since
         if partial and cfg.partial_look_means_out:
             before = ", ".join(str(k) for k in self._scan_tracked_s if k != obs.slam_map_index)
-            return self._look_out(t, obs, f"passed through the exit: tracking lost looking "
-                                          f"around ({self._look_losses} losses), and the look "
-                                          f"ended in SLAM map {obs.slam_map_index}, begun since, "
-                                          f"not in map {before}: too little around to track, out")
+            self._set(t, State.IDLE, Phase.DONE,
+                      f"passed through the exit: tracking lost looking around ({self._look_losses} "
+                      f"losses), and the look ended in SLAM map {obs.slam_map_index}, begun since, "
+                      f"not in map {before}: too little around to track, out")
+            return [Action(ActionKind.STOP)]
         opening = self._widest_opening(walls)
         seen = f"openings up to {opening:.0f} deg wide"
         # A camera facing open space loses tracking; one facing a room's walls rarely does.
@@ -790,7 +769,9 @@ class Conductor:
             # Side walls seen going on past the door's wall by a look that lost tracking this
             # often are the building's outside walls, or a wall beyond smeared along the view.
             why = ": too many losses for a room" if walled_beside else ""
-            return self._look_out(t, obs, f"passed through the exit: {seen} around, {side}{why}")
+            self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
+                                                 f"{side}{why}")
+            return [Action(ActionKind.STOP)]
         # A blank wall ahead looks like open space; walls going on beside it do not.
         seen += f", {'but ' if wide else ''}{side}"
         if self.rooms >= cfg.max_rooms:
@@ -811,59 +792,6 @@ class Conductor:
         self._exit_attempts = 0
         return self._ask_exit(t, f"another room beyond the exit ({seen}): find its exit "
                                  f"({self.rooms}/{cfg.max_rooms})")
-
-    def _look_out(self, t, obs, verdict):
-        """The look around says out. Judged on a SLAM map begun by a loss and never merged back
-        into the door's, it rests on the few seconds that map holds, with no outline to measure
-        the side walls on: a room beyond a partition, with a blank wall, looks as open as the
-        outside. The robot first faces the door come through (what the door's map holds most
-        of nearby) and relocalises for a merge back, at most look_merge_wait_s; then the look
-        is judged again on the door's map, or the verdict stands."""
-        cfg = self.config
-        if (cfg.look_merge_wait_s <= 0 or self._look_merge_tried
-                or None in (self._alternatives_map, obs.slam_map_index)
-                or obs.slam_map_index == self._alternatives_map):
-            self._set(t, State.IDLE, Phase.DONE, verdict)
-            return [Action(ActionKind.STOP)]
-        self._look_merge_tried = True
-        self._look_merge_since_s = t
-        self._look_verdict = verdict
-        self._look_loss_counts = (self._look_losses, self._look_sudden_losses)
-        self._set(t, State.START, Phase.LOOK_AROUND,
-                  f"the look around says out, but in SLAM map {obs.slam_map_index}, not the "
-                  f"door's map {self._alternatives_map}: facing the door come through until "
-                  f"they merge (at most {cfg.look_merge_wait_s:g} s)")
-        return [self._scan("face_door")]
-
-    def _look_merge_wait(self, t, obs):
-        """While waiting for the merge _look_out asked for: merged (and the grid settled), judge
-        the look again; out of time, the verdict stands; else keep relocalising."""
-        cfg = self.config
-        merged = obs.slam_map_index == self._alternatives_map and not obs.tracking_lost
-        expired = t - self._look_merge_since_s > cfg.look_merge_wait_s
-        if not (merged or expired):
-            if obs.scan_running:
-                self._scan_started = True
-                return []
-            # Asked for and not begun yet, or ended (or stopped by a loss): another try.
-            return [self._scan("face_door")] if self._scan_started else []
-        if obs.scan_running:
-            return [Action(ActionKind.STOP)]
-        if merged and self._map_changed_s is not None \
-                and t - self._map_changed_s < cfg.map_settle_s:
-            return []  # the grid of the merged map is rebuilt first
-        self._look_merge_since_s = None
-        self._scan_started = self._scan_cut = False
-        if merged:
-            self._look_losses, self._look_sudden_losses = self._look_loss_counts
-            self._set(t, State.START, Phase.LOOK_AROUND, f"SLAM merged back into the door's map "
-                                                         f"{self._alternatives_map}: the look "
-                                                         f"around is judged again there")
-            return self._looked_around(t, obs)
-        self._set(t, State.IDLE, Phase.DONE, f"{self._look_verdict} (no merge back into the "
-                                             f"door's SLAM map within "
-                                             f"{cfg.look_merge_wait_s:g} s)")
-        return [Action(ActionKind.STOP)]
 
     def _find_exit(self, t, obs):
         cfg = self.config

@@ -26,8 +26,7 @@ from sparse_nav.ros.robot_io import StepExecutor, TelloClient
 from sparse_nav.scanning import (GROUND_INITIAL_SCAN_TURN_DEG, GROUND_SPEED_M_S,
                                  GROUND_TURN_RATE_RAD_S, InitialScanConfig,
                                  RelocaliseConfig, Step, WallScanConfig, circular_scan,
-                                 face_then_relocalise, initial_scan, random_scan, relocalise,
-                                 wall_scan)
+                                 initial_scan, random_scan, relocalise, wall_scan)
 from sparse_nav.srv import FindExit
 
 # Navigator action states as the conductor names them.
@@ -218,12 +217,6 @@ class ConductorNode:
             # and its edge would cut every drive to min_baseline_m, too short for a new map.
             return relocalise(self.robot, _free_distance(grid, pose, off_map_free=True),
                               self.relocalise_config, self.initial_config)
-        if name == "face_door":
-            # Beyond a door, judged out in a SLAM map begun there: the door's map shows most
-            # through the door come through.
-            return face_then_relocalise(self.robot, pose, self.conductor.door_xy,
-                                        _free_distance(grid, pose, off_map_free=True),
-                                        self.relocalise_config, self.initial_config)
         if grid is None or pose is None:
             return initial_scan(self.initial_config)  # nothing to aim at yet
         room = _free_distance(grid, pose)
@@ -240,12 +233,11 @@ class ConductorNode:
             if name == "resume":  # the conductor asks only while obs.scan_resumable
                 rospy.logwarn("conductor: no stopped scan to go on with: a random scan instead")
                 name = "random"
-            if name not in ("relocalise", "face_door"):
+            if name != "relocalise":
                 self.paused_scan = None  # a new phase scan replaces the stopped one
             steps = self._scan_steps(name, pose)
             rospy.loginfo("conductor: %s scan, %d steps", name, len(steps))
-            runner = ScanRunner(steps, self.runner_config,
-                                while_lost=name in ("relocalise", "face_door"))
+            runner = ScanRunner(steps, self.runner_config, while_lost=name == "relocalise")
         self._start_runner(runner)
 
     def _start_runner(self, runner, resumable=True):

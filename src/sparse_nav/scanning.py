@@ -115,13 +115,6 @@ def relocalise(robot, free_distance=None, config=None, sway_config=None):
     return [Step(forward_m=sign * distance), Step(forward_m=-sign * distance), turn]
 
 
-def view_holding_try(robot, free_distance=None, config=None, sway_config=None):
-    """One :func:`relocalise` try without its turn: motion that keeps the camera on what it faces,
-    so that a new SLAM map gets the age and the baseline to merge back into the map that saw the
-    same view."""
-    return relocalise(robot, free_distance, config, sway_config)[:-1]
-
-
 def initial_scan(config=None):
     """The seed 000 initial scan as a list of Steps (a, b, c, d, e per iteration until a full turn)."""
     cfg = config or InitialScanConfig()

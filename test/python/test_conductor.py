@@ -5,7 +5,6 @@ import pytest
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, ExitRequest,
                                   Observation, Phase, ScanRunner, ScanRunnerConfig, State,
                                   take_off)
-from sparse_nav.conductor.scan_runner import merged_into
 from sparse_nav.scanning import Step, pose_after
 
 
@@ -1548,10 +1547,3 @@ def test_losses_passing_through_that_make_progress_do_not_count():
         actions = losing_tracking_on_the_way(m, (x, 0.0), 1)
         assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.GOAL, (8.0, 0.0))
     assert m.conductor.phase == Phase.PASS_THROUGH
-
-
-def test_a_slam_map_is_followed_through_the_merges_after_it():
-    assert merged_into(3, ()) == 3
-    assert merged_into(3, ((3, 1), (1, 0))) == 0       # 3 into 1, then 1 into 0
-    assert merged_into(3, ((1, 0), (3, 1))) == 1       # 1 went into 0 before 3 joined it
-    assert merged_into(None, ((3, 1),)) is None

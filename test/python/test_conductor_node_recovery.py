@@ -16,8 +16,7 @@ conductor_node = pytest.importorskip("sparse_nav.ros.conductor_node")
 from sparse_nav.conductor import Action, ActionKind, Observation  # noqa: E402
 from sparse_nav.conductor.grid_queries import GridView  # noqa: E402
 from sparse_nav.conductor.scan_runner import ScanRunner, ScanRunnerConfig  # noqa: E402
-from sparse_nav.scanning import (InitialScanConfig, RelocaliseConfig, Step,  # noqa: E402
-                                 pose_after, view_holding_try)
+from sparse_nav.scanning import Step, pose_after  # noqa: E402
 
 
 class RecordingExecutor:
@@ -27,14 +26,10 @@ class RecordingExecutor:
     def __init__(self, node, cut_at=None):
         self.node, self.cut_at = node, cut_at
         self.steps, self.poses = [], []
-        self.clock_s = 0.0  # each step takes 2 s
-        self.on_step = lambda count: None
 
     def execute(self, step, speed_factor=1.0, should_stop=lambda: False):
         self.steps.append(step)
         self.poses.append(self.node.odom_pose)
-        self.clock_s += 2.0
-        self.on_step(len(self.steps))
         if len(self.steps) == self.cut_at:
             self.node.scan_stop.set()
             return False
@@ -59,11 +54,6 @@ def node_with(grid):
     node.lock = threading.Lock()
     node.obs = Observation(time_s=0.0)
     node.paused_scan = None
-    node.paused_scan_map = None
-    node.paused_scan_merges = 0
-    node.last_tracked_map = None
-    node.relocalise_config = RelocaliseConfig()
-    node.initial_config = InitialScanConfig()
     return node
 
 
@@ -121,54 +111,3 @@ def test_without_odometry_a_cut_scan_goes_on_where_it_is():
     node._start_scan("resume", None)
     node.scan_thread.join(timeout=30.0)
     assert node.executor.steps == [steps[0], steps[1], steps[1]]
-
-
-def cut_then_resume_in_a_new_map(monkeypatch, merge_at_step=None, config=None, back_in_map=1):
-    """A ground scan in SLAM map 0 cut off during its turn; tracking back in map back_in_map, it
-    goes on. merge_at_step: the executed step (by count) at which SLAM merges map 1 back into
-    map 0."""
-    node = node_with(None)
-    node.runner_config = config or node.runner_config
-    monkeypatch.setattr(conductor_node.rospy, "get_time", lambda: node.executor.clock_s)
-    node.odom_pose = (0.0, 0.0, 0.0)
-    node.last_tracked_map = 0
-    node.executor.cut_at = 2
-    steps = [Step(forward_m=0.3), Step(ccw_deg=-60.0), Step(forward_m=0.3)]
-    node._start_runner(ScanRunner(steps, node.runner_config))
-    node.scan_thread.join(timeout=30.0)
-    assert node.paused_scan_map == 0
-    node.obs.slam_map_index, node.last_tracked_map = back_in_map, back_in_map
-
-    def merge(count):
-        if count == merge_at_step:
-            node.obs.slam_merges += ((1, 0),)
-            node.obs.slam_map_index = 0
-    node.executor.on_step = merge
-    node._start_scan("resume", None)
-    node.scan_thread.join(timeout=30.0)
-    assert not node.scan_thread.is_alive()
-    return node, steps
-
-
-def test_a_scan_going_on_in_a_new_slam_map_holds_its_view_until_slam_merges_back(monkeypatch):
-    node, steps = cut_then_resume_in_a_new_map(monkeypatch, merge_at_step=5)
-    hold = view_holding_try("ground", None)
-    assert hold == [Step(forward_m=0.6), Step(forward_m=-0.6)]
-    # Steps 1-2 ran before the cut, which left the robot where the cut turn began. Out and back
-    # along the view until the merge (during step 5: that try ends back in place), then the rest.
-    assert node.executor.steps[2:] == hold * 2 + steps[1:]
-
-
-def test_the_hold_ends_after_merge_hold_s_without_a_merge(monkeypatch):
-    node, steps = cut_then_resume_in_a_new_map(monkeypatch)
-    # 2 s a step, each try ends back in place: three tries pass the 10 s, then the scan.
-    hold = view_holding_try("ground", None)
-    assert node.executor.steps[2:] == hold * 3 + steps[1:]
-
-
-def test_no_hold_in_the_scans_own_map_or_with_merge_hold_s_zero(monkeypatch):
-    node, steps = cut_then_resume_in_a_new_map(monkeypatch, back_in_map=0)  # relocalised in it
-    assert node.executor.steps[2:] == steps[1:]
-    node, steps = cut_then_resume_in_a_new_map(monkeypatch,
-                                               config=ScanRunnerConfig(merge_hold_s=0.0))
-    assert node.executor.steps[2:] == steps[1:]

@@ -7,7 +7,7 @@ import pytest
 from sparse_nav.scanning import (GROUND_TURN_RATE_RAD_S, InitialScanConfig, RelocaliseConfig, Step,
                                  WallScanConfig, circular_scan, initial_scan, random_scan,
                                  pose_after, relocalise, steps_to_pose, sway, to_tello_commands,
-                                 to_velocity_segments, view_holding_try, wall_scan)
+                                 to_velocity_segments, wall_scan)
 from sparse_nav.sim import SimConfig, load_world
 from sparse_nav.sim.simulator import Simulator
 from sparse_nav.sim.slam import TrackingState
@@ -136,13 +136,6 @@ def test_the_ground_robot_relocalises_straight_into_the_side_with_room():
     assert boxed_in[0] == Step(forward_m=0.2)  # min_baseline_m: a try moves all the same
     with pytest.raises(ValueError, match="min_baseline_m"):
         relocalise("ground", config=RelocaliseConfig(baseline_m=0.1))
-
-
-def test_holding_a_view_is_a_relocalise_try_without_its_turn():
-    assert view_holding_try("drone") == sway()
-    assert view_holding_try("ground", lambda bearing: 0.5 if bearing == 0.0 else 3.0) == \
-        [Step(forward_m=-0.6), Step(forward_m=0.6)]
-    assert sum(s.ccw_deg for s in view_holding_try("ground")) == 0.0
 
 
 def test_relocalising_starts_a_new_map_after_a_forced_loss_in_the_simulator():

@@ -27,9 +27,6 @@ class ScanRunnerConfig:
     #                                   cut step began before going on; 0: goes on where it is
     cuts_before_skip: int = 2     # a scan cut off this often at one place skips to the end of
     #                               the turn that place belongs to; 0: never
-    merge_hold_s: float = 10.0    # a scan going on after a loss in a SLAM map begun since first
-    #                               holds its view, moving out and back along it, this long at
-    #                               most (s) for SLAM to merge that map back into the scan's; 0: no
 
     def validate(self):
         if not 0 < self.min_speed_factor <= self.slow_factor <= 1:
@@ -40,16 +37,6 @@ class ScanRunnerConfig:
             raise ValueError("resume_return_max_m must be finite and >= 0")
         if self.cuts_before_skip < 0:
             raise ValueError("cuts_before_skip must be >= 0")
-        if not (math.isfinite(self.merge_hold_s) and self.merge_hold_s >= 0):
-            raise ValueError("merge_hold_s must be finite and >= 0")
-
-
-def merged_into(map_index, merges):
-    """The SLAM map that map_index is part of after merges, (old, new) index pairs in order."""
-    for old, new in merges:
-        if old == map_index:
-            map_index = new
-    return map_index
 
 
 class ScanRunner:

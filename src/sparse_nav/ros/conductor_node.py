@@ -19,7 +19,6 @@ from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observ
                                   ScanRunner, ScanRunnerConfig, take_off)
 from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
 from sparse_nav.conductor.outlines import OutlinesByMap
-from sparse_nav.conductor.scan_runner import merged_into
 from sparse_nav.msg import ConductorState, MotionStatus, NavigatorStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
@@ -27,8 +26,7 @@ from sparse_nav.ros.robot_io import StepExecutor, TelloClient
 from sparse_nav.scanning import (GROUND_INITIAL_SCAN_TURN_DEG, GROUND_SPEED_M_S,
                                  GROUND_TURN_RATE_RAD_S, InitialScanConfig,
                                  RelocaliseConfig, Step, WallScanConfig, circular_scan,
-                                 initial_scan, random_scan, relocalise, view_holding_try,
-                                 wall_scan)
+                                 initial_scan, random_scan, relocalise, wall_scan)
 from sparse_nav.srv import FindExit
 
 # Navigator action states as the conductor names them.
@@ -83,10 +81,6 @@ class ConductorNode:
         self.scan_thread = None
         self.scan_stop = threading.Event()
         self.paused_scan = None  # the ScanRunner of a phase scan stopped with steps left
-        # ... the SLAM map it last tracked in, and how many merges were known when it stopped
-        self.paused_scan_map = None
-        self.paused_scan_merges = 0
-        self.last_tracked_map = None
         self.exit_thread = None
         self.keepalive_s = float(rospy.get_param("~drone_keepalive_s", 8.0))
         self.landed = False
@@ -143,8 +137,6 @@ class ConductorNode:
                     self.obs.slam_merges += ((previous, msg.map_index),)
             self.obs.tracking_lost = lost
             self.obs.slam_map_index = msg.map_index
-            if msg.state in (SlamState.OK, SlamState.NEW_MAP):
-                self.last_tracked_map = msg.map_index
             self.obs.slam_tracked_points = msg.n_tracked_points
 
     def _on_motion_status(self, msg):
@@ -234,10 +226,8 @@ class ConductorNode:
 
     def _start_scan(self, name, pose):
         self._stop_scan()
-        hold_for = None
         if name == "resume" and self.paused_scan is not None:
             runner, self.paused_scan = self.paused_scan, None
-            hold_for = (self.paused_scan_map, self.paused_scan_merges)
             rospy.loginfo("conductor: the stopped scan goes on")
         else:
             if name == "resume":  # the conductor asks only while obs.scan_resumable
@@ -248,57 +238,17 @@ class ConductorNode:
             steps = self._scan_steps(name, pose)
             rospy.loginfo("conductor: %s scan, %d steps", name, len(steps))
             runner = ScanRunner(steps, self.runner_config, while_lost=name == "relocalise")
-        self._start_runner(runner, hold_for=hold_for)
+        self._start_runner(runner)
 
-    def _start_runner(self, runner, resumable=True, hold_for=None):
+    def _start_runner(self, runner, resumable=True):
         """Runs the runner's steps in the scan thread; a resumable one stopped midway is kept
-        to go on with later. hold_for: (map, merges known) of a stopped scan going on, see
-        _hold_for_merge."""
+        to go on with later."""
         self.scan_stop.clear()
-        self.scan_thread = threading.Thread(target=self._run_scan,
-                                            args=(runner, resumable, hold_for), daemon=True)
+        self.scan_thread = threading.Thread(target=self._run_scan, args=(runner, resumable),
+                                            daemon=True)
         self.scan_thread.start()
 
-    def _hold_for_merge(self, scan_map, merges_known):
-        """A scan going on after a loss, tracking back in a SLAM map begun since: hold the view
-        (where the cut step began, for the ground robot) up to retry/merge_hold_s for SLAM to
-        merge that map back into the scan's. Turned on at once, the new map, too young for place
-        recognition, would never see the old one's points again: each loss would leave the
-        scan's map behind, and the scan, judged in a map holding a part of the room, would start
-        over (the stressed ground bench at b608f15: no initial scan ended)."""
-        hold_s = self.runner_config.merge_hold_s
-        if hold_s <= 0 or scan_map is None:
-            return
-        start = rospy.get_time()
-        holding = False
-        while not self.scan_stop.is_set() and not rospy.is_shutdown():
-            with self.lock:
-                now_map, lost, grid = self.obs.slam_map_index, self.obs.tracking_lost, self.grid
-                target = merged_into(scan_map, self.obs.slam_merges[merges_known:])
-            if lost:
-                return  # the scan's retries and the conductor's loss rules take over
-            if now_map == target:
-                if holding:
-                    rospy.loginfo("conductor: SLAM merged back into the scan's map %s after "
-                                  "%.1f s", target, rospy.get_time() - start)
-                return
-            if rospy.get_time() - start >= hold_s:
-                rospy.loginfo("conductor: no merge back into the scan's map %s within %g s: the "
-                              "scan goes on in map %s", target, hold_s, now_map)
-                return
-            if not holding:
-                rospy.loginfo("conductor: tracking back in map %s, not the scan's map %s: "
-                              "holding the view up to %g s for a merge back", now_map, target,
-                              hold_s)
-                holding = True
-            pose = self._robot_pose()
-            for step in view_holding_try(self.robot, _free_distance(grid, pose, off_map_free=True),
-                                         self.relocalise_config, self.initial_config):
-                if self.scan_stop.is_set():
-                    return
-                self.executor.execute(step, should_stop=self.scan_stop.is_set)
-
-    def _run_scan(self, runner, resumable=True, hold_for=None):
+    def _run_scan(self, runner, resumable=True):
         if self.tello is not None and not self.took_off:
             self.took_off, why = take_off(self.tello.send)
             if not self.took_off:
@@ -319,8 +269,6 @@ class ConductorNode:
             if self.scan_stop.is_set():
                 break
             self.executor.execute(step, should_stop=self.scan_stop.is_set)
-        if hold_for is not None:
-            self._hold_for_merge(*hold_for)
         while not self.scan_stop.is_set() and not rospy.is_shutdown():
             item = runner.next_step(odom_pose())
             if item is None:
@@ -345,8 +293,6 @@ class ConductorNode:
             if (resumable and self.scan_stop.is_set() and not runner.while_lost
                     and not runner.done):
                 self.paused_scan = runner
-                self.paused_scan_map = self.last_tracked_map
-                self.paused_scan_merges = len(self.obs.slam_merges)
 
     def _stop_scan(self):
         if self.scan_thread is not None and self.scan_thread.is_alive():

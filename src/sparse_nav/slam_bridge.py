@@ -7,7 +7,6 @@ When SLAM merges a map back into an earlier one, the pose jumps into that map's 
 earlier anchor is picked up again because it explains the pose best.
 """
 import dataclasses
-import math
 import re
 
 import numpy as np
@@ -30,14 +29,10 @@ class BridgeConfig:
     min_tracked_points: int = 15         # fewer tracked map points: tracking is lost
     relocalise_tolerance_m: float = 2.0  # an earlier map anchor is reused if it puts the robot this close
     jump_threshold_m: float = 0.5        # a pose step larger than this (metres) is a map switch
-    jump_threshold_deg: float = 20.0     # ... and so is a heading step larger than this (deg)
-    merge_tolerance_deg: float = 45.0    # after a jump while tracking, an earlier map anchor is taken
-    #                                      only if it also puts the robot's heading this close (deg)
     max_pose_age_for_scale_s: float = 0.3
 
     def validate(self):
-        for name in ("pose_timeout_s", "relocalise_tolerance_m", "jump_threshold_m",
-                     "jump_threshold_deg", "merge_tolerance_deg"):
+        for name in ("pose_timeout_s", "relocalise_tolerance_m", "jump_threshold_m"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.min_tracked_points < 0:
@@ -165,19 +160,9 @@ class MapAnchors:
         else:
             candidate = self.current.base_pose(t_slam_cam, self._t_cam_base)
             step = np.linalg.norm(candidate[:3, 3] - self.last_base[:3, 3])
-            # A robot scanning in place stays near the origin of every SLAM map it began there,
-            # so a merge moves its pose read through the old anchor by centimetres, but turns it
-            # by the angle between the two maps' frames (tens of degrees).
-            turn = _heading_change_deg(candidate, self.last_base)
-            if self._needs_check or step > self._cfg.jump_threshold_m \
-                    or turn > self._cfg.jump_threshold_deg:
+            if self._needs_check or step > self._cfg.jump_threshold_m:
                 left = self.current
-                if self._new_map_expected:
-                    best = None
-                elif self._needs_check:
-                    best = self._best_anchor(t_slam_cam)
-                else:
-                    best = self._merged_anchor(t_slam_cam)
+                best = None if self._new_map_expected else self._best_anchor(t_slam_cam)
                 if best is None:
                     level = planar(*self.last_base[:3, 3], yaw_of(self.last_base))
                     self.current = self._new_anchor(t_slam_cam, metres_per_unit, level)
@@ -209,31 +194,6 @@ class MapAnchors:
             if d <= best_d:
                 best, best_d = anchor, d
         return best
-
-    def _merged_anchor(self, t_slam_cam):
-        """After a jump while tracking (SLAM merged the map into an earlier one, or corrected
-        it): the anchor that puts the robot nearest its last pose, in place
-        (relocalise_tolerance_m) and heading (merge_tolerance_deg), each measured against its
-        tolerance; None if none does. The robot barely moved between the two poses, so heading
-        is as telling as place; after a loss (_best_anchor) it is not: the robot may have turned
-        while lost."""
-        best, best_cost = None, math.inf
-        for anchor in (a for a in self.anchors if not a.retired):
-            pose = anchor.base_pose(t_slam_cam, self._t_cam_base)
-            d = np.linalg.norm(pose[:3, 3] - self.last_base[:3, 3])
-            turn = _heading_change_deg(pose, self.last_base)
-            if d > self._cfg.relocalise_tolerance_m or turn > self._cfg.merge_tolerance_deg:
-                continue
-            cost = d / self._cfg.relocalise_tolerance_m + turn / self._cfg.merge_tolerance_deg
-            if cost < best_cost:
-                best, best_cost = anchor, cost
-        return best
-
-
-def _heading_change_deg(t_a, t_b):
-    """Absolute yaw difference (deg, 0-180) between two poses."""
-    d = yaw_of(t_a) - yaw_of(t_b)
-    return abs(math.degrees(math.atan2(math.sin(d), math.cos(d))))
 
 
 def odometry_camera_position(base_position, base_quaternion, t_base_cam):

@@ -23,7 +23,7 @@ from sparse_nav.ros.params import locked, read_fields
 def _config_from_params():
     cfg = BridgeConfig()
     read_fields(cfg, ("pose_timeout_s", "min_tracked_points", "relocalise_tolerance_m",
-                      "jump_threshold_m", "jump_threshold_deg", "merge_tolerance_deg"))
+                      "jump_threshold_m"))
     cfg.validate()
     return cfg
 

@@ -56,7 +56,10 @@ class SimConfig:
     slam_scale_range_m_per_unit: tuple = (0.2, 5.0)   # log-uniform metres per SLAM unit
     slam_scale_drift_per_sqrt_m: float = 0.01  # random-walk sigma of log scale per sqrt(metre)
     slam_max_turn_rate_rad_s: float = 1.75     # faster turns blur the image: tracking lost
-    slam_recently_lost_s: float = 1.0          # RECENTLY_LOST before LOST
+    slam_recently_lost_s: float = 3.0          # RECENTLY_LOST before LOST (ORB-SLAM3 monocular:
+    #                                            3 s of image time, Tracking.cc)
+    slam_young_map_s: float = 3.0              # a map younger than this is LOST outright, no
+    #                                            RECENTLY_LOST (ORB-SLAM3: 10 keyframes or fewer)
     slam_lost_frames_before_new_map: int = 1   # LOST frames before the atlas starts a new map
     slam_merge_min_shared: int = 40            # old-map points seen to merge back into it
     slam_merge_min_map_age_s: float = 3.0      # place recognition needs a few keyframes first
@@ -124,6 +127,10 @@ class SimConfig:
                      "slam_merge_min_shared", "slam_lost_frames_before_new_map"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1")
+        for name in ("slam_recently_lost_s", "slam_young_map_s"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
         for t in self.force_loss_at_s:
             if not math.isfinite(float(t)):
                 raise ValueError(f"force_loss_at_s holds a non-finite time {t!r}")

@@ -287,9 +287,14 @@ class MonocularSlam:
             self.last_loss_cause = (
                 f"turn at {math.degrees(turn_rate_rad_s):.0f} deg/s" if fast_turn
                 else f"{len(tracked)} map points among {len(visible)} features in view")
+            self.tracking_losses += 1
+            if stamp_s - m.created_s < cfg.slam_young_map_s:
+                # ORB-SLAM3 tries to relocalise only in a map of more than 10 keyframes.
+                self.state = TrackingState.LOST
+                self._lost_frames = 0
+                return self._lost_frame(stamp_s)
             self.state = TrackingState.RECENTLY_LOST
             self._lost_since_s = stamp_s
-            self.tracking_losses += 1
             return self._output(stamp_s, TrackingState.RECENTLY_LOST)
         # New map points: features seen before in this map from a view with enough parallax.
         cand = visible[~m.has_point[visible]]

@@ -111,3 +111,60 @@ def test_without_odometry_a_cut_scan_goes_on_where_it_is():
     node._start_scan("resume", None)
     node.scan_thread.join(timeout=30.0)
     assert node.executor.steps == [steps[0], steps[1], steps[1]]
+
+
+class LosingExecutor(RecordingExecutor):
+    """Loses tracking halfway through the step numbered lose_at (by count): the robot stops
+    there when the scan thread asks, and tracking is back once it has moved again."""
+
+    def __init__(self, node, lose_at):
+        super().__init__(node)
+        self.lose_at, self.speeds = lose_at, []
+
+    def execute(self, step, speed_factor=1.0, should_stop=lambda: False):
+        self.steps.append(step)
+        self.speeds.append(speed_factor)
+        self.poses.append(self.node.odom_pose)
+        if self.node.obs.tracking_lost:
+            self.node.obs.tracking_lost = False
+        half = Step(step.forward_m / 2, step.left_m / 2, step.ccw_deg / 2)
+        self._move(half)
+        if len(self.steps) == self.lose_at:
+            self.node.obs.tracking_lost = True
+            if should_stop():
+                return False
+        self._move(half)
+        return True
+
+    def _move(self, step):
+        if self.node.odom_pose is not None:
+            self.node.odom_pose = pose_after(self.node.odom_pose, [step])
+
+
+def test_a_ground_step_that_loses_tracking_stops_backs_off_and_is_redone_slower():
+    node = node_with(None)
+    node.odom_pose = (0.0, 0.0, 0.0)
+    node.executor = LosingExecutor(node, lose_at=2)
+    steps = [Step(forward_m=0.3), Step(ccw_deg=-60.0), Step(forward_m=0.3)]
+    node._start_runner(ScanRunner(steps, node.runner_config))
+    node.scan_thread.join(timeout=30.0)
+    done = node.executor.steps
+    # Stopped 30 deg into the turn, back 30 deg at full speed, the turn again at half speed.
+    assert done[:2] == steps[:2]
+    assert done[2].ccw_deg == pytest.approx(30.0) and not done[2].forward_m
+    assert node.executor.speeds[2] == 1.0
+    assert node.executor.poses[3] == pytest.approx((0.3, 0.0, 0.0), abs=1e-9)
+    assert done[3:] == steps[1:] and node.executor.speeds[3] == 0.5
+    assert node.odom_pose == pytest.approx((0.3 + 0.3 * math.cos(math.radians(-60)),
+                                            0.3 * math.sin(math.radians(-60)),
+                                            math.radians(-60)), abs=1e-9)
+
+
+def test_without_odometry_a_step_that_loses_tracking_runs_to_its_end():
+    node = node_with(None)
+    node.executor = LosingExecutor(node, lose_at=2)
+    steps = [Step(forward_m=0.3), Step(ccw_deg=-60.0)]
+    node._start_runner(ScanRunner(steps, node.runner_config))
+    node.scan_thread.join(timeout=30.0)
+    # The drone's odometry is SLAM's own: the whole turn, then undone and redone slower.
+    assert node.executor.steps == [steps[0], steps[1], steps[1].undo(), steps[1]]

@@ -138,8 +138,14 @@ class ScanRunner:
         tracking is lost after it."""
         self.report(moved and not (lost and not self.while_lost))
 
-    def report(self, pose_known: bool):
-        """After the step from next_step(): pose_known False is a soft fail."""
+    def report_backed_off(self):
+        """The step from next_step() was stopped where tracking was lost and the robot went
+        back to where the step began: a soft fail whose retry needs no undo step."""
+        self.report(False, returned=True)
+
+    def report(self, pose_known: bool, returned: bool = False):
+        """After the step from next_step(): pose_known False is a soft fail. returned: the
+        robot is back where the step began (see report_backed_off)."""
         if self._current is None:
             raise RuntimeError("no step in progress")
         step, speed, place = self._current
@@ -157,13 +163,13 @@ class ScanRunner:
             self.failed = True
             return
         slower = max(self.config.min_speed_factor, speed * self.config.slow_factor)
-        retry = [(step.undo(), slower, None), (step, slower, place)]
+        retry = [] if returned else [(step.undo(), slower, None)]
         if self.soft_fails >= self.config.max_soft_fails and self.succeeded:
             last, last_at = self.succeeded.pop(), self._succeeded_at.pop()
             # Back past the last success, then do it again, then the failing step.
-            retry = [(step.undo(), slower, None), (last.undo(), slower, None),
-                     (last, slower, last_at), (step, slower, place)]
+            retry += [(last.undo(), slower, None), (last, slower, last_at)]
             self.soft_fails = 0
+        retry.append((step, slower, place))
         self._todo.extend(reversed(retry))
 
 

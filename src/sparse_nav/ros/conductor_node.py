@@ -26,7 +26,8 @@ from sparse_nav.ros.robot_io import StepExecutor, TelloClient
 from sparse_nav.scanning import (GROUND_INITIAL_SCAN_TURN_DEG, GROUND_SPEED_M_S,
                                  GROUND_TURN_RATE_RAD_S, InitialScanConfig,
                                  RelocaliseConfig, Step, WallScanConfig, circular_scan,
-                                 initial_scan, random_scan, relocalise, wall_scan)
+                                 initial_scan, random_scan, relocalise, steps_to_pose,
+                                 wall_scan)
 from sparse_nav.srv import FindExit
 
 # Navigator action states as the conductor names them.
@@ -49,6 +50,12 @@ def _free_distance(grid, pose, off_map_free=False):
     x, y, yaw = pose
     return lambda bearing_deg: grid.free_distance(x, y, yaw + math.radians(bearing_deg),
                                                   off_map_free=off_map_free)
+
+
+def _describe(steps):
+    """Odometry steps in a log line: "+0.30 m, -24 deg"."""
+    return ", ".join(f"{s.forward_m:+.2f} m" if s.forward_m else f"{s.ccw_deg:+.0f} deg"
+                     for s in steps)
 
 
 class ConductorNode:
@@ -262,19 +269,27 @@ class ConductorNode:
             else (lambda: None)
         back = runner.return_steps(odom_pose())
         if back:
-            rospy.loginfo("conductor: back to where the scan goes on (%s)",
-                          ", ".join(f"{s.forward_m:+.2f} m" if s.forward_m else
-                                    f"{s.ccw_deg:+.0f} deg" for s in back))
-        for step in back:
-            if self.scan_stop.is_set():
-                break
-            self.executor.execute(step, should_stop=self.scan_stop.is_set)
+            rospy.loginfo("conductor: back to where the scan goes on (%s)", _describe(back))
+        self._drive(back)
         while not self.scan_stop.is_set() and not rospy.is_shutdown():
-            item = runner.next_step(odom_pose())
+            start = odom_pose()
+            item = runner.next_step(start)
             if item is None:
                 break
             step, speed = item
-            done = self.executor.execute(step, speed, should_stop=self.scan_stop.is_set)
+            # A step that loses tracking is stopped there and the ground robot drives straight
+            # back to where it began: SLAM relocalises in the same map only while recently lost
+            # (3 s in ORB-SLAM3), less than the rest of the step, the pause and a slow undo take.
+            watch = start is not None and not runner.while_lost and not self._tracking_lost()
+            done = self.executor.execute(
+                step, speed,
+                should_stop=lambda: self.scan_stop.is_set() or (watch and self._tracking_lost()))
+            if not done and watch and not self.scan_stop.is_set() and self._tracking_lost():
+                self._back_off(odom_pose(), start)
+                if not self.scan_stop.is_set():
+                    rospy.sleep(0.5)  # the bridge's state catches up with the last motion
+                    runner.report_backed_off()
+                    continue
             if self.scan_stop.is_set():
                 skipped = len(runner.skipped)
                 runner.interrupt()
@@ -293,6 +308,24 @@ class ConductorNode:
             if (resumable and self.scan_stop.is_set() and not runner.while_lost
                     and not runner.done):
                 self.paused_scan = runner
+
+    def _tracking_lost(self):
+        with self.lock:
+            return self.obs.tracking_lost
+
+    def _back_off(self, pose, target):
+        """Drives from pose back to target (odometry poses) at full speed."""
+        back = steps_to_pose(pose, target) if pose is not None else []
+        rospy.loginfo("conductor: tracking lost in a scan step: back to where it began (%s)",
+                      _describe(back) or "there already")
+        self._drive(back)
+
+    def _drive(self, steps):
+        """Executes steps at full speed; stops with the scan."""
+        for step in steps:
+            if self.scan_stop.is_set():
+                return
+            self.executor.execute(step, should_stop=self.scan_stop.is_set)
 
     def _stop_scan(self):
         if self.scan_thread is not None and self.scan_thread.is_alive():

@@ -1240,11 +1240,22 @@ def test_a_step_backed_off_from_a_loss_is_redone_slower_without_an_undo():
     assert runner.next_step() == (a, 1.0)
     runner.report(True)
     assert runner.next_step() == (b, 1.0)
-    runner.report_backed_off()
+    runner.report_backed_off(tracked_again=True)
     assert runner.next_step() == (b, 0.5)
-    runner.report_backed_off()  # the second in a row: the last success is undone and redone
+    runner.report_backed_off(tracked_again=True)  # the second in a row: the last success too
     assert run(runner, []) == [(a.undo(), 0.25), (a, 0.25), (b, 0.25)]
     assert runner.succeeded == [a, b] and runner.total_fails == 2
+
+
+def test_a_step_backed_off_and_still_lost_also_undoes_the_last_success_at_once():
+    a, b = Step(forward_m=0.3), Step(ccw_deg=-60.0)
+    runner = ScanRunner([a, b], ScanRunnerConfig(max_soft_fails=2))
+    assert runner.next_step() == (a, 1.0)
+    runner.report(True)
+    assert runner.next_step() == (b, 1.0)
+    runner.report_backed_off(tracked_again=False)
+    assert run(runner, []) == [(a.undo(), 0.5), (a, 0.5), (b, 0.5)]
+    assert runner.succeeded == [a, b] and runner.total_fails == 1
 
 
 def test_a_cut_scan_returns_to_where_its_cut_step_began():

@@ -138,14 +138,16 @@ class ScanRunner:
         tracking is lost after it."""
         self.report(moved and not (lost and not self.while_lost))
 
-    def report_backed_off(self):
+    def report_backed_off(self, tracked_again: bool):
         """The step from next_step() was stopped where tracking was lost and the robot went
-        back to where the step began: a soft fail whose retry needs no undo step."""
-        self.report(False, returned=True)
+        back to where the step began: a soft fail whose retry needs no undo step. Not
+        tracked_again there, the last success is undone too, back to a view tracked longer."""
+        self.report(False, returned=True, undo_last=not tracked_again)
 
-    def report(self, pose_known: bool, returned: bool = False):
+    def report(self, pose_known: bool, returned: bool = False, undo_last: bool = False):
         """After the step from next_step(): pose_known False is a soft fail. returned: the
-        robot is back where the step began (see report_backed_off)."""
+        robot is back where the step began (see report_backed_off); undo_last: undo the last
+        success before the retry even before max_soft_fails."""
         if self._current is None:
             raise RuntimeError("no step in progress")
         step, speed, place = self._current
@@ -164,7 +166,7 @@ class ScanRunner:
             return
         slower = max(self.config.min_speed_factor, speed * self.config.slow_factor)
         retry = [] if returned else [(step.undo(), slower, None)]
-        if self.soft_fails >= self.config.max_soft_fails and self.succeeded:
+        if (undo_last or self.soft_fails >= self.config.max_soft_fails) and self.succeeded:
             last, last_at = self.succeeded.pop(), self._succeeded_at.pop()
             # Back past the last success, then do it again, then the failing step.
             retry += [(last.undo(), slower, None), (last, slower, last_at)]

@@ -288,7 +288,7 @@ class ConductorNode:
                 self._back_off(odom_pose(), start)
                 if not self.scan_stop.is_set():
                     rospy.sleep(0.5)  # the bridge's state catches up with the last motion
-                    runner.report_backed_off()
+                    runner.report_backed_off(tracked_again=not self._tracking_lost())
                     continue
             if self.scan_stop.is_set():
                 skipped = len(runner.skipped)

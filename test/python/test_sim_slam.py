@@ -230,6 +230,18 @@ def test_a_young_map_is_lost_outright():
     assert sim.slam_output().map_id == 1
 
 
+@pytest.mark.parametrize("pose_min_tracked, first_state", [(10, S.RECENTLY_LOST), (1000, S.LOST)])
+def test_a_young_map_whose_pose_is_still_found_is_only_recently_lost(pose_min_tracked,
+                                                                      first_state):
+    # Every frame after initialisation tracks too few points for slam_min_tracked; the pose is
+    # found (10 or more) in one case and not in the other.
+    sim = Simulator(_room(), SimConfig(seed=5, slam_min_tracked=1000,
+                                       slam_pose_min_tracked=pose_min_tracked))
+    outs = _drive(sim, -0.3, 0.0, 1.5)
+    after = [o.state for o in outs if o.state != S.NOT_INITIALIZED][1:]
+    assert after and after[0] == first_state
+
+
 def test_force_loss_at_s():
     sim = Simulator(_room(), SimConfig(seed=1, force_loss_at_s=[2.5]))
     outs = _drive(sim, -0.3, 0.0, 3.0)

@@ -42,6 +42,7 @@ class SimConfig:
     slam_init_min_parallax: float = 0.08       # baseline / median shared-feature depth
     slam_init_min_shared: int = 50             # features shared with the reference frame
     slam_min_tracked: int = 25                 # fewer tracked map points: tracking lost
+    slam_pose_min_tracked: int = 10            # fewer: not even the pose is found (see below)
     slam_reloc_min_tracked: int = 40           # map points needed to relocalise
     slam_new_point_min_parallax_deg: float = 1.0   # triangulation angle for a new map point
     slam_depth_noise_px: float = 1.5           # keypoint noise at pyramid level 0 (px); depth sigma
@@ -58,7 +59,9 @@ class SimConfig:
     slam_max_turn_rate_rad_s: float = 1.75     # faster turns blur the image: tracking lost
     slam_recently_lost_s: float = 3.0          # RECENTLY_LOST before LOST (ORB-SLAM3 monocular:
     #                                            3 s of image time, Tracking.cc)
-    slam_young_map_s: float = 3.0              # a map younger than this is LOST outright, no
+    slam_young_map_s: float = 3.0              # a map younger than this is LOST outright when
+    #                                            the pose is not found (fewer than
+    #                                            slam_pose_min_tracked, or a fast turn), no
     #                                            RECENTLY_LOST (ORB-SLAM3: 10 keyframes or fewer)
     slam_lost_frames_before_new_map: int = 1   # LOST frames before the atlas starts a new map
     slam_merge_min_shared: int = 40            # old-map points seen to merge back into it
@@ -123,6 +126,8 @@ class SimConfig:
         if not 0 < lo <= hi:
             raise ValueError(f"slam_scale_range_m_per_unit must be (lo, hi) with 0 < lo <= hi, "
                              f"got {self.slam_scale_range_m_per_unit}")
+        if not 1 <= self.slam_pose_min_tracked <= self.slam_min_tracked:
+            raise ValueError("need 1 <= slam_pose_min_tracked <= slam_min_tracked")
         for name in ("slam_init_min_shared", "slam_min_tracked", "slam_reloc_min_tracked",
                      "slam_merge_min_shared", "slam_lost_frames_before_new_map"):
             if int(getattr(self, name)) < 1:

@@ -288,8 +288,11 @@ class MonocularSlam:
                 f"turn at {math.degrees(turn_rate_rad_s):.0f} deg/s" if fast_turn
                 else f"{len(tracked)} map points among {len(visible)} features in view")
             self.tracking_losses += 1
-            if stamp_s - m.created_s < cfg.slam_young_map_s:
-                # ORB-SLAM3 tries to relocalise only in a map of more than 10 keyframes.
+            pose_lost = len(tracked) < cfg.slam_pose_min_tracked or fast_turn
+            if pose_lost and stamp_s - m.created_s < cfg.slam_young_map_s:
+                # ORB-SLAM3: a frame whose pose is not found relocalises only in a map of more
+                # than 10 keyframes; one whose pose is found but too few points confirm it
+                # (TrackLocalMap) is recently lost in any map.
                 self.state = TrackingState.LOST
                 self._lost_frames = 0
                 return self._lost_frame(stamp_s)

@@ -1234,28 +1234,21 @@ def test_repeated_soft_fails_also_undo_the_last_success():
     assert runner.succeeded == [a, b]
 
 
-def test_a_step_backed_off_from_a_loss_is_redone_slower_without_an_undo():
+@pytest.mark.parametrize("tracked_again", [True, False])
+def test_a_step_backed_off_from_a_loss_is_redone_slower_without_an_undo(tracked_again):
     a, b = Step(forward_m=0.3), Step(ccw_deg=-60.0)
     runner = ScanRunner([a, b], ScanRunnerConfig(max_soft_fails=2))
     assert runner.next_step() == (a, 1.0)
     runner.report(True)
     assert runner.next_step() == (b, 1.0)
-    runner.report_backed_off(tracked_again=True)
-    assert runner.next_step() == (b, 0.5)
-    runner.report_backed_off(tracked_again=True)  # the second in a row: the last success too
-    assert run(runner, []) == [(a.undo(), 0.25), (a, 0.25), (b, 0.25)]
-    assert runner.succeeded == [a, b] and runner.total_fails == 2
-
-
-def test_a_step_backed_off_and_still_lost_also_undoes_the_last_success_at_once():
-    a, b = Step(forward_m=0.3), Step(ccw_deg=-60.0)
-    runner = ScanRunner([a, b], ScanRunnerConfig(max_soft_fails=2))
-    assert runner.next_step() == (a, 1.0)
-    runner.report(True)
-    assert runner.next_step() == (b, 1.0)
-    runner.report_backed_off(tracked_again=False)
-    assert run(runner, []) == [(a.undo(), 0.5), (a, 0.5), (b, 0.5)]
-    assert runner.succeeded == [a, b] and runner.total_fails == 1
+    runner.report_backed_off(tracked_again=tracked_again)
+    if tracked_again:
+        assert runner.next_step() == (b, 0.5)
+        runner.report_backed_off(tracked_again=True)  # the second in a row: the last success too
+        assert run(runner, []) == [(a.undo(), 0.25), (a, 0.25), (b, 0.25)]
+    else:  # the view where b began is no help: back past a at once
+        assert run(runner, []) == [(a.undo(), 0.5), (a, 0.5), (b, 0.5)]
+    assert runner.succeeded == [a, b] and runner.total_fails == (2 if tracked_again else 1)
 
 
 def test_a_cut_scan_returns_to_where_its_cut_step_began():

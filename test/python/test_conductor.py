@@ -1,4 +1,6 @@
 """The conductor's automaton and the scan retry mechanism, without ROS."""
+import math
+
 import numpy as np
 import pytest
 
@@ -1249,6 +1251,19 @@ def test_a_step_backed_off_from_a_loss_is_redone_slower_without_an_undo(tracked_
     else:  # the view where b began is no help: back past a at once
         assert run(runner, []) == [(a.undo(), 0.5), (a, 0.5), (b, 0.5)]
     assert runner.succeeded == [a, b] and runner.total_fails == (2 if tracked_again else 1)
+
+
+def test_a_step_stopped_by_a_loss_backs_off_to_where_it_began():
+    a = Step(ccw_deg=-60.0)
+    runner = ScanRunner([a])
+    assert runner.back_off_steps((0.0, 0.0, 0.0)) == []      # no step in progress
+    runner.next_step((1.0, 2.0, 0.0))
+    back = runner.back_off_steps((1.0, 2.0, math.radians(-30)))
+    assert len(back) == 1 and back[0].ccw_deg == pytest.approx(30.0)
+    assert runner.back_off_steps(None) == []                  # no odometry
+    no_odometry = ScanRunner([a])
+    no_odometry.next_step(None)
+    assert no_odometry.back_off_steps((1.0, 2.0, 0.0)) == []
 
 
 def test_a_cut_scan_returns_to_where_its_cut_step_began():

@@ -133,6 +133,13 @@ class ScanRunner:
             return []
         return steps_to_pose(pose, target)
 
+    def back_off_steps(self, pose):
+        """Steps from pose (as in next_step) back to where the step in progress began, for a
+        step stopped where tracking was lost: [] when either place is unknown."""
+        if pose is None or self.step_start_pose is None:
+            return []
+        return steps_to_pose(pose, self.step_start_pose)
+
     def report_motion(self, moved: bool, lost: bool):
         """After the step from next_step(): whether the motion was carried out and whether SLAM
         tracking is lost after it."""

@@ -26,8 +26,7 @@ from sparse_nav.ros.robot_io import StepExecutor, TelloClient
 from sparse_nav.scanning import (GROUND_INITIAL_SCAN_TURN_DEG, GROUND_SPEED_M_S,
                                  GROUND_TURN_RATE_RAD_S, InitialScanConfig,
                                  RelocaliseConfig, Step, WallScanConfig, circular_scan,
-                                 initial_scan, random_scan, relocalise, steps_to_pose,
-                                 wall_scan)
+                                 initial_scan, random_scan, relocalise, wall_scan)
 from sparse_nav.srv import FindExit
 
 # Navigator action states as the conductor names them.
@@ -272,24 +271,25 @@ class ConductorNode:
             rospy.loginfo("conductor: back to where the scan goes on (%s)", _describe(back))
         self._drive(back)
         while not self.scan_stop.is_set() and not rospy.is_shutdown():
-            start = odom_pose()
-            item = runner.next_step(start)
+            item = runner.next_step(odom_pose())
             if item is None:
                 break
             step, speed = item
             # A step that loses tracking is stopped there and the ground robot drives straight
             # back to where it began: SLAM relocalises in the same map only while recently lost
             # (3 s in ORB-SLAM3), less than the rest of the step, the pause and a slow undo take.
-            watch = start is not None and not runner.while_lost and not self._tracking_lost()
+            watch = (runner.step_start_pose is not None and not runner.while_lost
+                     and not self._tracking_lost())
             done = self.executor.execute(
                 step, speed,
                 should_stop=lambda: self.scan_stop.is_set() or (watch and self._tracking_lost()))
-            if not done and watch and not self.scan_stop.is_set() and self._tracking_lost():
-                self._back_off(odom_pose(), start)
-                if not self.scan_stop.is_set():
-                    rospy.sleep(0.5)  # the bridge's state catches up with the last motion
-                    runner.report_backed_off(tracked_again=not self._tracking_lost())
-                    continue
+            backed_off = (not done and watch and not self.scan_stop.is_set()
+                          and self._tracking_lost())
+            if backed_off:
+                back = runner.back_off_steps(odom_pose())
+                rospy.loginfo("conductor: tracking lost in a scan step: back to where it began "
+                              "(%s)", _describe(back) or "there already")
+                self._drive(back)
             if self.scan_stop.is_set():
                 skipped = len(runner.skipped)
                 runner.interrupt()
@@ -300,9 +300,10 @@ class ConductorNode:
                                   len(runner.skipped) - skipped)
                 break
             rospy.sleep(0.5)  # the bridge's state catches up with the last motion
-            with self.lock:
-                lost = self.obs.tracking_lost
-            runner.report_motion(done, lost)
+            if backed_off:
+                runner.report_backed_off(tracked_again=not self._tracking_lost())
+            else:
+                runner.report_motion(done, self._tracking_lost())
         with self.lock:
             self.obs.scan_failed = runner.failed
             if (resumable and self.scan_stop.is_set() and not runner.while_lost
@@ -312,13 +313,6 @@ class ConductorNode:
     def _tracking_lost(self):
         with self.lock:
             return self.obs.tracking_lost
-
-    def _back_off(self, pose, target):
-        """Drives from pose back to target (odometry poses) at full speed."""
-        back = steps_to_pose(pose, target) if pose is not None else []
-        rospy.loginfo("conductor: tracking lost in a scan step: back to where it began (%s)",
-                      _describe(back) or "there already")
-        self._drive(back)
 
     def _drive(self, steps):
         """Executes steps at full speed; stops with the scan."""

@@ -3,13 +3,15 @@
 The monocular SLAM world is the first camera's optical frame, in SLAM units. The bridge anchors
 each SLAM map in a z-up ``map`` frame: the first map so that ``base_link`` is at the origin when
 tracking first succeeds, every later map so that the robot continues from its last known pose.
-When SLAM merges a map back into an earlier one, the pose jumps into that map's frame and the
-earlier anchor is picked up again because it explains the pose best.
+When SLAM merges a map back into an earlier one, the earlier map's points reappear in the
+published cloud at their own coordinates, and the pose jumps into that map's frame: either picks
+the earlier anchor up again.
 """
 import dataclasses
 import re
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from sparse_nav.transforms import invert, planar, quaternion_to_matrix, scaled, yaw_of
 
@@ -30,13 +32,19 @@ class BridgeConfig:
     relocalise_tolerance_m: float = 2.0  # an earlier map anchor is reused if it puts the robot this close
     jump_threshold_m: float = 0.5        # a pose step larger than this (metres) is a map switch
     max_pose_age_for_scale_s: float = 0.3
+    merge_sample_points: int = 300       # points kept of each map's cloud to recognise it by
+    merge_match_tolerance: float = 0.01  # a kept point reappears within this share of its map's size
+    merge_min_share: float = 0.5         # of a map's kept points that reappear: merged into it
 
     def validate(self):
-        for name in ("pose_timeout_s", "relocalise_tolerance_m", "jump_threshold_m"):
+        for name in ("pose_timeout_s", "relocalise_tolerance_m", "jump_threshold_m",
+                     "merge_sample_points", "merge_match_tolerance"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.min_tracked_points < 0:
             raise ValueError("min_tracked_points must be >= 0")
+        if not 0 < self.merge_min_share <= 1:
+            raise ValueError(f"merge_min_share must be in (0, 1], got {self.merge_min_share}")
 
 
 class StateTracker:
@@ -131,10 +139,13 @@ class MapAnchors:
         self.last_base = None
         self._needs_check = True
         self._new_map_expected = False
+        self._accept_next = False
+        self._clouds = MapClouds(config)
 
     def tracking_lost(self):
         """The next pose may be in another map (a new one, or an earlier one after a merge)."""
         self._needs_check = True
+        self._clouds.last_index = None
 
     def expect_new_map(self):
         """SLAM said it is initialising a new map (ORB-SLAM3 passes through NOT_INITIALIZED, and
@@ -151,7 +162,8 @@ class MapAnchors:
         """Base pose in ``map`` for a camera pose in the SLAM frame; returns (T_map_base, event).
 
         event is None, "first" (the first map), "new_map", "switched" (back to an earlier map),
-        or "relocalised" (tracking resumed in the same map).
+        "relocalised" (tracking resumed in the same map) or "reframed" (the pose jumped while
+        tracking and no earlier map explains it).
         """
         event = None
         if self.current is None:
@@ -160,11 +172,19 @@ class MapAnchors:
         else:
             candidate = self.current.base_pose(t_slam_cam, self._t_cam_base)
             step = np.linalg.norm(candidate[:3, 3] - self.last_base[:3, 3])
-            if self._needs_check or step > self._cfg.jump_threshold_m:
+            jumped = step > self._cfg.jump_threshold_m and not self._accept_next
+            if self._needs_check or jumped:
                 left = self.current
                 best = None if self._new_map_expected else self._best_anchor(t_slam_cam)
-                if best is None:
-                    level = planar(*self.last_base[:3, 3], yaw_of(self.last_base))
+                level = planar(*self.last_base[:3, 3], yaw_of(self.last_base))
+                if best is None and not self._needs_check:
+                    # A jump while tracking is a merge or a loop closure, never a new map (SLAM
+                    # begins one only after it lost tracking): the map goes on from where the
+                    # robot was until its cloud tells which earlier map it joined (on_cloud).
+                    self.current.t_map_slam = self._anchor_at(t_slam_cam, self.current
+                                                              .metres_per_unit, level)
+                    event = "reframed"
+                elif best is None:
                     self.current = self._new_anchor(t_slam_cam, metres_per_unit, level)
                     event = "new_map"
                 elif best is not self.current:
@@ -176,12 +196,37 @@ class MapAnchors:
                     left.retired = True
         self._needs_check = False
         self._new_map_expected = False
+        self._accept_next = False
         self.last_base = self.current.base_pose(t_slam_cam, self._t_cam_base)
         return self.last_base, event
 
+    def on_cloud(self, points):
+        """The active SLAM map's cloud (SLAM units) while tracking. Returns the index of the
+        earlier map whose points reappear in it (SLAM merged the current map into that one, and
+        the next pose is read through its anchor, whatever step that makes), else None.
+
+        The map left is retired, and so is the map the previous cloud belonged to: when the pose
+        jumped at the merge, a new anchor may stand between them."""
+        if self.current is None:
+            return None
+        previous = self._clouds.last_index
+        merged = self._clouds.observe(self.current.index, points)
+        if merged is None:
+            return None
+        for left in (self.current.index, previous):
+            if left is not None and left != merged:
+                self.anchors[left].retired = True
+        self.current = self.anchors[merged]
+        self.current.retired = False
+        self._accept_next = True
+        return merged
+
+    def _anchor_at(self, t_slam_cam, metres_per_unit, t_map_base):
+        """T_map_slam that puts the base at t_map_base for this camera pose."""
+        return t_map_base @ invert(scaled(t_slam_cam, metres_per_unit) @ self._t_cam_base)
+
     def _new_anchor(self, t_slam_cam, metres_per_unit, t_map_base):
-        # Choose T_map_slam so that the base is at t_map_base for this camera pose.
-        t_map_slam = t_map_base @ invert(scaled(t_slam_cam, metres_per_unit) @ self._t_cam_base)
+        t_map_slam = self._anchor_at(t_slam_cam, metres_per_unit, t_map_base)
         anchor = Anchor(len(self.anchors), t_map_slam, float(metres_per_unit))
         self.anchors.append(anchor)
         return anchor
@@ -194,6 +239,57 @@ class MapAnchors:
             if d <= best_d:
                 best, best_d = anchor, d
         return best
+
+
+class MapClouds:
+    """Recognises a SLAM map by its points. ORB-SLAM3 welds a map into the earlier one it
+    recognises, in the earlier map's frame: the earlier map's points reappear in the active map's
+    cloud at their own coordinates, while the merged map's own points move. The pose alone misses
+    such merges for a robot scanning in place, which stays near the origin of every map it begins
+    there: the pose moves by centimetres and turns by the angle between the two frames.
+
+    Keeps a sample of each map's latest cloud (SLAM units, as published) and finds which earlier
+    map's sample a new cloud contains.
+    """
+
+    def __init__(self, config, seed=0):
+        self._cfg = config
+        self._rng = np.random.default_rng(seed)  # which points are kept; seeded, so repeatable
+        self._samples = {}       # map index -> (sample points, match radius in SLAM units)
+        self.last_index = None   # the map whose sample the latest cloud was kept as
+
+    def observe(self, current_index, points):
+        """The earlier map whose kept points reappear in this cloud of the active map while the
+        current map's own do not (None when none does); keeps the cloud as the sample of the map
+        it belongs to."""
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        if len(points) == 0:
+            return None
+        tree = cKDTree(points)
+        merged = None
+        if self._share_in(current_index, tree) < self._cfg.merge_min_share:
+            shares = {k: self._share_in(k, tree) for k in self._samples if k != current_index}
+            best = max(shares, key=shares.get, default=None)
+            if best is not None and shares[best] >= self._cfg.merge_min_share:
+                merged = best
+        self._keep(current_index if merged is None else merged, points)
+        return merged
+
+    def _share_in(self, index, tree):
+        kept = self._samples.get(index)
+        if kept is None:
+            return 0.0
+        sample, radius = kept
+        distances, _ = tree.query(sample, distance_upper_bound=radius)
+        return float(np.mean(np.isfinite(distances)))
+
+    def _keep(self, index, points):
+        n = self._cfg.merge_sample_points
+        sample = points if len(points) <= n else points[self._rng.choice(len(points), n,
+                                                                         replace=False)]
+        size = float(np.median(np.linalg.norm(points - np.median(points, axis=0), axis=1)))
+        self._samples[index] = (sample, max(size, 1e-9) * self._cfg.merge_match_tolerance)
+        self.last_index = index
 
 
 def odometry_camera_position(base_position, base_quaternion, t_base_cam):

@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 
 from sparse_nav.slam_bridge import (LOST, NOT_INITIALIZED, OK, ORB_LOST, ORB_NOT_INITIALIZED,
-                                    ORB_OK, BridgeConfig, DroneMoveScale, MapAnchors, MapScales,
-                                    ScaleEstimator, StateTracker, odometry_camera_position)
+                                    ORB_OK, BridgeConfig, DroneMoveScale, MapAnchors, MapClouds,
+                                    MapScales, ScaleEstimator, StateTracker,
+                                    odometry_camera_position)
 from sparse_nav.transforms import invert, make_transform, planar, yaw_of
 
 # A forward-looking camera 0.5 m up: optical z = base x, optical x = -base y, optical y = -base z.
@@ -222,6 +223,101 @@ def test_an_answer_to_a_command_never_heard_does_not_shift_the_pairing_for_good(
 def test_config_validation():
     with pytest.raises(ValueError, match="pose_timeout_s"):
         BridgeConfig(pose_timeout_s=0).validate()
+    with pytest.raises(ValueError, match="merge_min_share"):
+        BridgeConfig(merge_min_share=0).validate()
+    with pytest.raises(ValueError, match="merge_sample_points"):
+        BridgeConfig(merge_sample_points=0).validate()
+
+
+def room_points(seed=0, n=3000):
+    """Features on the walls of a 6 m x 5 m room, 2.5 m high (world frame, m)."""
+    rng = np.random.default_rng(seed)
+    u, z = rng.uniform(0, 1, n), rng.uniform(0, 2.5, n)
+    wall = rng.integers(0, 4, n)
+    x = np.select([wall == 0, wall == 1, wall == 2], [u * 6, 6.0, u * 6], 0.0)
+    y = np.select([wall == 0, wall == 1, wall == 2], [0.0, u * 5, 5.0], u * 5)
+    return np.column_stack([x - 3.0, y - 2.5, z])
+
+
+def in_slam(t_slamorigin_base, world_points, units_per_metre):
+    """World points in the SLAM frame of a map begun with the base at t_slamorigin_base."""
+    t = invert(t_slamorigin_base @ MOUNT)
+    return (world_points @ t[:3, :3].T + t[:3, 3]) * units_per_metre
+
+
+def test_a_merge_of_a_robot_scanning_in_place_is_seen_in_the_cloud():
+    # The robot turns on the spot; a loss begins map 1 there, 60 deg on, at another scale.
+    # When SLAM merges map 1 back into map 0, the pose read through map 1's anchor barely moves
+    # (both maps begin at the robot) but map 0's points reappear at their own coordinates.
+    anchors = MapAnchors(BridgeConfig(), MOUNT)
+    world = room_points()
+    origin, s0 = planar(0.0, 0.0, 0.0, 0.0), 2.0
+    anchors.update(camera_in_slam(origin, origin, s0), 1.0 / s0)
+    seen0 = world[world[:, 0] > 0]
+    assert anchors.on_cloud(in_slam(origin, seen0, s0)) is None
+    anchors.tracking_lost()
+    anchors.expect_new_map()
+    turned, s1 = planar(0.0, 0.0, 0.0, np.radians(60)), 0.7
+    _, event = anchors.update(camera_in_slam(turned, turned, s1), 1.0 / s0)
+    assert event == "new_map" and anchors.current.index == 1
+    seen1 = world[world[:, 1] > 0]
+    assert anchors.on_cloud(in_slam(turned, seen1, s1)) is None, "a new map is no merge"
+    # Merged: one cloud in map 0's frame; the pose is in map 0's frame too, a small step.
+    more = planar(0.0, 0.0, 0.0, np.radians(70))
+    _, event = anchors.update(camera_in_slam(origin, more, s0), 1.0 / s0)
+    assert event is None and anchors.current.index == 1, "the pose alone does not tell"
+    merged = in_slam(origin, np.vstack([seen0, seen1]), s0)
+    assert anchors.on_cloud(merged) == 0
+    assert anchors.current.index == 0 and anchors.anchors[1].retired
+    later = planar(0.0, 0.0, 0.0, np.radians(80))
+    base, event = anchors.update(camera_in_slam(origin, later, s0), 1.0 / s0)
+    assert event is None
+    assert yaw_of(base) == pytest.approx(np.radians(80))
+    # The same map goes on: no further merge.
+    assert anchors.on_cloud(merged) is None and anchors.current.index == 0
+
+
+def test_a_jump_while_tracking_that_no_anchor_explains_keeps_the_map_until_its_cloud_tells():
+    anchors = MapAnchors(BridgeConfig(relocalise_tolerance_m=1.0), MOUNT)
+    world = room_points(seed=1)
+    origin, s0 = planar(0.0, 0.0, 0.0, 0.0), 1.0
+    anchors.update(camera_in_slam(origin, origin, s0), 1.0 / s0)
+    anchors.on_cloud(in_slam(origin, world, s0))
+    anchors.tracking_lost()
+    anchors.expect_new_map()
+    here, s1 = planar(0.5, 0.0, 0.0, 0.0), 3.0
+    anchors.update(camera_in_slam(here, here, s1), 1.0 / s0)
+    anchors.on_cloud(in_slam(here, world[:1000], s1))
+    # Map 1's scale is read 3 times too large until measured: its anchor puts the robot 3 m
+    # off when SLAM merges it into map 0, 2 m on; no anchor explains the jump.
+    there = planar(2.5, 0.0, 0.0, 0.0)
+    base_before = anchors.last_base.copy()
+    base, event = anchors.update(camera_in_slam(origin, there, s0), 1.0)
+    assert event == "reframed" and anchors.current.index == 1 and len(anchors.anchors) == 2
+    np.testing.assert_allclose(base, base_before, atol=1e-9)
+    assert anchors.on_cloud(in_slam(origin, world, s0)) == 0
+    base, event = anchors.update(camera_in_slam(origin, there, s0), 1.0 / s0)
+    assert event is None and anchors.current.index == 0
+    np.testing.assert_allclose(base[:3, 3], [2.5, 0.0, 0.0], atol=1e-9)
+
+
+def test_map_clouds_recognise_a_map_whose_points_were_refined():
+    cfg = BridgeConfig()
+    clouds = MapClouds(cfg)
+    rng = np.random.default_rng(2)
+    a = room_points(seed=3) * 0.8
+    assert clouds.observe(0, a) is None and clouds.last_index == 0
+    b = room_points(seed=4) * 2.0 + [0.3, -0.2, 1.0]
+    assert clouds.observe(1, b) is None and clouds.last_index == 1
+    # Bundle adjustment moved 40 % of map 0's points by more than the tolerance.
+    refined = a.copy()
+    moved = rng.random(len(a)) < 0.4
+    refined[moved] += rng.normal(0.0, 0.2, (moved.sum(), 3))
+    merged = np.vstack([refined, b * 0.4 + [1.0, 0.0, 0.0]])
+    assert clouds.observe(1, merged) == 0 and clouds.last_index == 0
+    # A map whose points moved more than that is not recognised.
+    assert clouds.observe(1, a + rng.normal(0.0, 0.2, a.shape)) is None
+    assert clouds.observe(0, np.zeros((0, 3))) is None
 
 
 def test_odometry_follows_the_camera_not_the_base():

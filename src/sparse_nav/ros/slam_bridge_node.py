@@ -23,7 +23,8 @@ from sparse_nav.ros.params import locked, read_fields
 def _config_from_params():
     cfg = BridgeConfig()
     read_fields(cfg, ("pose_timeout_s", "min_tracked_points", "relocalise_tolerance_m",
-                      "jump_threshold_m"))
+                      "jump_threshold_m", "merge_sample_points", "merge_match_tolerance",
+                      "merge_min_share"))
     cfg.validate()
     return cfg
 
@@ -69,6 +70,7 @@ class SlamBridgeNode:
         self.n_points = 0
         self.points_before_loss = 0
         self.reacquiring = False
+        self.reacquired_stamp = None
         self.map_event = ""
         self.last_tf_stamp = None
         # Subscriber and timer callbacks run on their own threads and share the state below.
@@ -146,16 +148,10 @@ class SlamBridgeNode:
         self.n_poses += 1
         metres_per_unit, _, _ = self.scales.current.estimate()
         t_map_base, event = self.anchors.update(t_slam_cam, metres_per_unit)
+        if self.reacquiring:
+            self.reacquired_stamp = msg.header.stamp
         self.reacquiring = False
-        self.scales.on_map_event(self.anchors.current.index, event)
-        if event in ("new_map", "switched"):
-            self.drone_moves.invalidate()
-            self.last_slam_position = None
-            self.new_map_pending = True
-            self.map_event = (f"SLAM started a new map (index {self.anchors.current.index})"
-                              if event == "new_map" else
-                              f"SLAM merged back into map {self.anchors.current.index}")
-            self._publish_scale()  # the new map's own scale, or the prior it starts from
+        self._on_map_event(event)
         self.t_map_base = t_map_base
         self.last_slam_position = t_slam_cam[:3, 3].copy()
         sample = self.drone_moves.on_pose(self.last_slam_position)
@@ -163,6 +159,20 @@ class SlamBridgeNode:
             self._apply_scale()
         if not self.publish_odom_tf:
             self._update_map_odom(msg.header.stamp)
+
+    def _on_map_event(self, event):
+        self.scales.on_map_event(self.anchors.current.index, event)
+        if event in ("new_map", "switched", "reframed"):
+            # A scale sample across the jump would pair positions in two frames.
+            self.drone_moves.invalidate()
+            self.last_slam_position = None
+            self.last_odom_position = None
+        if event in ("new_map", "switched"):
+            self.new_map_pending = True
+            self.map_event = (f"SLAM started a new map (index {self.anchors.current.index})"
+                              if event == "new_map" else
+                              f"SLAM merged back into map {self.anchors.current.index}")
+            self._publish_scale()  # the new map's own scale, or the prior it starts from
 
     def _update_map_odom(self, stamp):
         try:
@@ -192,6 +202,11 @@ class SlamBridgeNode:
             return
         if anchor is None or self.state != OK:
             return
+        if self.reacquired_stamp is not None and msg.header.stamp < self.reacquired_stamp:
+            return  # the map tracked before the loss, late: it would read as a merge into it
+        if self.anchors.on_cloud(points) is not None:
+            self._on_map_event("switched")
+            anchor = self.anchors.current
         self.points_before_loss = len(points)
         metric = points * anchor.metres_per_unit
         metric = metric @ anchor.t_map_slam[:3, :3].T + anchor.t_map_slam[:3, 3]

@@ -162,6 +162,10 @@ class SlamBridgeNode:
 
     def _on_map_event(self, event):
         self.scales.on_map_event(self.anchors.current.index, event)
+        if event == "reframed":
+            rospy.logwarn("slam_bridge: the pose jumped while tracking in map %d and no earlier "
+                          "map explains it: re-anchored where the robot was",
+                          self.anchors.current.index)
         if event in ("new_map", "switched", "reframed"):
             # A scale sample across the jump would pair positions in two frames.
             self.drone_moves.invalidate()

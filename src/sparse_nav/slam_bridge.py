@@ -265,15 +265,21 @@ class MapClouds:
         points = np.asarray(points, dtype=float).reshape(-1, 3)
         if len(points) == 0:
             return None
-        tree = cKDTree(points)
+        # One map known (every run without a loss): nothing it could have merged into.
         merged = None
-        if self._share_in(current_index, tree) < self._cfg.merge_min_share:
-            shares = {k: self._share_in(k, tree) for k in self._samples if k != current_index}
-            best = max(shares, key=shares.get, default=None)
-            if best is not None and shares[best] >= self._cfg.merge_min_share:
-                merged = best
+        if any(k != current_index for k in self._samples):
+            merged = self._merged_into(current_index, cKDTree(points))
         self._keep(current_index if merged is None else merged, points)
         return merged
+
+    def _merged_into(self, current_index, tree):
+        """The earlier map whose kept points reappear in the cloud of tree, if the current map's
+        own do not."""
+        if self._share_in(current_index, tree) >= self._cfg.merge_min_share:
+            return None
+        shares = {k: self._share_in(k, tree) for k in self._samples if k != current_index}
+        best = max(shares, key=shares.get)
+        return best if shares[best] >= self._cfg.merge_min_share else None
 
     def _share_in(self, index, tree):
         kept = self._samples.get(index)

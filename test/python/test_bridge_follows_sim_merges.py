@@ -2,8 +2,6 @@
 in place, with a forced loss every 20 s, begins a new SLAM map at each loss and SLAM merges most
 of them back. The bridge must follow: its current anchor is always the one it opened for the
 simulator's active map (no merge missed, none invented)."""
-import numpy as np
-
 from sparse_nav.scanning import initial_scan, to_velocity_segments
 from sparse_nav.sim import SimConfig, Simulator, TrackingState, load_world
 from sparse_nav.slam_bridge import BridgeConfig, MapAnchors

@@ -7,11 +7,13 @@ When SLAM merges a map back into an earlier one, the earlier map's points reappe
 published cloud at their own coordinates, and the pose jumps into that map's frame: either picks
 the earlier anchor up again.
 """
+import collections
 import dataclasses
 import re
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.distance import pdist
 
 from sparse_nav.transforms import invert, planar, quaternion_to_matrix, scaled, yaw_of
 
@@ -35,10 +37,13 @@ class BridgeConfig:
     merge_sample_points: int = 300       # points kept of each map's cloud to recognise it by
     merge_match_tolerance: float = 0.01  # a kept point reappears within this share of its map's size
     merge_min_share: float = 0.5         # of a map's kept points that reappear: merged into it
+    merge_scale_tolerance: float = 0.08  # a merge's scale ratio is measured when the distances
+                                         # between points of both clouds agree at every quantile
+                                         # within this share (a similarity transform)
 
     def validate(self):
         for name in ("pose_timeout_s", "relocalise_tolerance_m", "jump_threshold_m",
-                     "merge_sample_points", "merge_match_tolerance"):
+                     "merge_sample_points", "merge_match_tolerance", "merge_scale_tolerance"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.min_tracked_points < 0:
@@ -140,7 +145,9 @@ class MapAnchors:
         self._needs_check = True
         self._new_map_expected = False
         self._accept_next = False
+        self._reanchor_next = False
         self._clouds = MapClouds(config)
+        self.merge = None  # the MapMerge the latest cloud showed, if any
 
     def tracking_lost(self):
         """The next pose may be in another map (a new one, or an earlier one after a merge)."""
@@ -158,6 +165,13 @@ class MapAnchors:
         if self.current is not None and metres_per_unit > 0:
             self.current.metres_per_unit = float(metres_per_unit)
 
+    def rescale(self, metres_per_unit):
+        """A new scale for the current map that moves the robot nowhere: the next pose re-anchors
+        the map where the robot was (set_scale scales the map about its origin, which a small
+        correction moves the robot little, and a merge's new scale by metres)."""
+        self.set_scale(metres_per_unit)
+        self._reanchor_next = self.current is not None
+
     def update(self, t_slam_cam, metres_per_unit):
         """Base pose in ``map`` for a camera pose in the SLAM frame; returns (T_map_base, event).
 
@@ -170,6 +184,10 @@ class MapAnchors:
             self.current = self._new_anchor(t_slam_cam, metres_per_unit, np.eye(4))
             event = "first"
         else:
+            if self._reanchor_next and not self._needs_check:
+                self.current.t_map_slam = self._anchor_at(
+                    t_slam_cam, self.current.metres_per_unit,
+                    planar(*self.last_base[:3, 3], yaw_of(self.last_base)))
             candidate = self.current.base_pose(t_slam_cam, self._t_cam_base)
             step = np.linalg.norm(candidate[:3, 3] - self.last_base[:3, 3])
             jumped = step > self._cfg.jump_threshold_m and not self._accept_next
@@ -194,23 +212,28 @@ class MapAnchors:
                     event = "relocalised"
                 if self.current is not left and not self._needs_check:
                     left.retired = True
+                    self._clouds.merged_from = left.index
         self._needs_check = False
         self._new_map_expected = False
         self._accept_next = False
+        self._reanchor_next = False
         self.last_base = self.current.base_pose(t_slam_cam, self._t_cam_base)
         return self.last_base, event
 
     def on_cloud(self, points):
         """The active SLAM map's cloud (SLAM units) while tracking. Returns the index of the
         earlier map whose points reappear in it (SLAM merged the current map into that one, and
-        the next pose is read through its anchor, whatever step that makes), else None.
+        the next pose is read through its anchor, whatever step that makes), else None. Sets
+        ``merge`` when this is the first cloud of a merge, found by this cloud or by the pose.
 
         The map left is retired, and so is the map the previous cloud belonged to: when the pose
         jumped at the merge, a new anchor may stand between them."""
+        self.merge = None
         if self.current is None:
             return None
         previous = self._clouds.last_index
         merged = self._clouds.observe(self.current.index, points)
+        self.merge = self._clouds.merge
         if merged is None:
             return None
         for left in (self.current.index, previous):
@@ -241,6 +264,17 @@ class MapAnchors:
         return best
 
 
+MapMerge = collections.namedtuple("MapMerge", "left into units_ratios")
+MapMerge.__doc__ = """SLAM merged map ``left`` into map ``into``. ``units_ratios`` maps each
+earlier map whose last cloud this merged cloud matches in shape to the number of ``into``'s units
+one of its units became: the map left, or a map merged on the way (SLAM merges one map after
+another within a frame, faster than the pose tells)."""
+
+# Points of each map kept to compare map sizes: distance quantiles within about 1 %.
+_SIZE_SAMPLE_POINTS = 1000
+_SIZE_QUANTILES = (0.1, 0.25, 0.5, 0.75, 0.9)
+
+
 class MapClouds:
     """Recognises a SLAM map by its points. ORB-SLAM3 welds a map into the earlier one it
     recognises, in the earlier map's frame: the earlier map's points reappear in the active map's
@@ -249,28 +283,68 @@ class MapClouds:
     there: the pose moves by centimetres and turns by the angle between the two frames.
 
     Keeps a sample of each map's latest cloud (SLAM units, as published) and finds which earlier
-    map's sample a new cloud contains.
+    map's sample a new cloud contains. At a merge it also measures the scale between the two
+    maps, which SLAM gives the merged map from the map merged into (see ``_units_ratios``).
     """
 
     def __init__(self, config, seed=0):
         self._cfg = config
         self._rng = np.random.default_rng(seed)  # which points are kept; seeded, so repeatable
         self._samples = {}       # map index -> (sample points, match radius in SLAM units)
+        self._sizes = {}         # map index -> (points in its latest cloud, their size sample)
         self.last_index = None   # the map whose sample the latest cloud was kept as
+        self.merged_from = None  # the map the pose left into the current one while tracking
+        self.merge = None        # the MapMerge the latest cloud was the first of, if any
 
     def observe(self, current_index, points):
         """The earlier map whose kept points reappear in this cloud of the active map while the
         current map's own do not (None when none does); keeps the cloud as the sample of the map
         it belongs to."""
+        self.merge = None
         points = np.asarray(points, dtype=float).reshape(-1, 3)
         if len(points) == 0:
             return None
         # One map known (every run without a loss): nothing it could have merged into.
-        merged = None
+        merged, tree = None, None
         if any(k != current_index for k in self._samples):
-            merged = self._merged_into(current_index, cKDTree(points))
-        self._keep(current_index if merged is None else merged, points)
+            tree = cKDTree(points)
+            merged = self._merged_into(current_index, tree)
+        into = current_index if merged is None else merged
+        left = current_index if merged is not None else self.merged_from
+        self.merged_from = None
+        # A late cloud of the map the pose left, which still holds its points where they were,
+        # is no merged cloud.
+        if left is not None and left != into and (
+                merged is not None or self._share_in(left, tree) < self._cfg.merge_min_share):
+            self.merge = MapMerge(left, into, self._units_ratios(into, points))
+            self._sizes.pop(left, None)  # its points are the merged map's now
+        self._keep(into, points)
         return merged
+
+    def _units_ratios(self, into, points):
+        """Units of ``into`` per unit of each earlier map this first cloud after a merge into it
+        may hold: a similarity transform scales every distance between points alike, so the
+        distances in this cloud against those in a map's last one give the ratio, when that map
+        had more points than ``into`` (the cloud is mostly its points), at least half as many as
+        this cloud, and the two agree at every quantile."""
+        n_into = self._sizes.get(into, (0, None))[0]
+        quantiles = None
+        ratios = {}
+        for k, (n_k, sample) in self._sizes.items():
+            if k == into or n_k <= n_into or n_k < max(50, 0.5 * len(points)):
+                continue
+            if quantiles is None:
+                quantiles = self._distance_quantiles(points)
+            r = quantiles / self._distance_quantiles(sample)
+            if np.all(np.isfinite(r)) and np.min(r) > 0 \
+                    and np.max(r) <= (1.0 + self._cfg.merge_scale_tolerance) * np.min(r):
+                ratios[k] = float(np.median(r))
+        return ratios
+
+    def _distance_quantiles(self, points):
+        if len(points) > _SIZE_SAMPLE_POINTS:
+            points = points[self._rng.choice(len(points), _SIZE_SAMPLE_POINTS, replace=False)]
+        return np.quantile(pdist(points), _SIZE_QUANTILES)
 
     def _merged_into(self, current_index, tree):
         """The earlier map whose kept points reappear in the cloud of tree, if the current map's
@@ -283,18 +357,19 @@ class MapClouds:
 
     def _share_in(self, index, tree):
         kept = self._samples.get(index)
-        if kept is None:
+        if kept is None or tree is None:
             return 0.0
         sample, radius = kept
         distances, _ = tree.query(sample, distance_upper_bound=radius)
         return float(np.mean(np.isfinite(distances)))
 
     def _keep(self, index, points):
-        n = self._cfg.merge_sample_points
-        sample = points if len(points) <= n else points[self._rng.choice(len(points), n,
-                                                                         replace=False)]
+        n = min(len(points), max(self._cfg.merge_sample_points, _SIZE_SAMPLE_POINTS))
+        chosen = points[self._rng.choice(len(points), n, replace=False)]  # in random order
         size = float(np.median(np.linalg.norm(points - np.median(points, axis=0), axis=1)))
-        self._samples[index] = (sample, max(size, 1e-9) * self._cfg.merge_match_tolerance)
+        self._samples[index] = (chosen[:self._cfg.merge_sample_points],
+                                max(size, 1e-9) * self._cfg.merge_match_tolerance)
+        self._sizes[index] = (len(points), chosen[:_SIZE_SAMPLE_POINTS])
         self.last_index = index
 
 
@@ -331,6 +406,14 @@ class ScaleEstimator:
         as its prior."""
         return ScaleEstimator(self.estimate()[0], self._min_metric_m, self._max)
 
+    def absorbing(self, other, factor):
+        """This map's estimator after SLAM merged the map of ``other`` into it: other's samples
+        times ``factor`` (the merge's ratio of the two maps' metres per unit), then this one's
+        own, which the sample limit keeps first."""
+        merged = ScaleEstimator(self._prior, self._min_metric_m, self._max)
+        merged._ratios = ([r * factor for r in other._ratios] + self._ratios)[-self._max:]
+        return merged
+
     def estimate(self):
         """(metres_per_unit, confidence in [0, 1], n_samples)."""
         n = len(self._ratios)
@@ -364,6 +447,27 @@ class MapScales:
             self._by_map[index] = self.current
         elif event == "switched":
             self.current = self._by_map[index]
+
+    def on_merge(self, merge):
+        """SLAM merged map ``merge.left`` into ``merge.into``, which keeps its frame and scale.
+        The scale samples of the best measured map the merged cloud holds carry over, converted
+        by the measured ratio of units, when it has more than the merged map: a map begun in a
+        loss and never measured, into which SLAM merged the map measured all along, kept the
+        scale guessed at its start (a ground robot finds no floor in a cloud scaled 50 % wrong,
+        and so never measured it again). Returns the map whose samples carried over, or None."""
+        into = self._by_map.get(merge.into)
+        counts = {k: self._by_map[k].estimate()[2] for k in merge.units_ratios
+                  if k in self._by_map}
+        if into is None or not counts:
+            return None
+        source = max(counts, key=counts.get)
+        if counts[source] <= into.estimate()[2]:
+            return None
+        self._by_map[merge.into] = into.absorbing(self._by_map[source],
+                                                  1.0 / merge.units_ratios[source])
+        if self.current is into:
+            self.current = self._by_map[merge.into]
+        return source
 
 
 _MOVE = re.compile(r"^\s*(forward|back|left|right|up|down)\s+(\d+)\s*$")

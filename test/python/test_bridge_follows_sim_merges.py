@@ -1,10 +1,13 @@
 """The bridge's map anchoring against the simulator's SLAM atlas: a ground robot scanning the room
-in place, with a forced loss every 20 s, begins a new SLAM map at each loss and SLAM merges most
-of them back. The bridge must follow: its current anchor is always the one it opened for the
-simulator's active map (no merge missed, none invented)."""
+in place, with forced losses, begins a new SLAM map at each loss and SLAM merges most of them
+back. The bridge must follow: its current anchor is always the one it opened for the
+simulator's active map (no merge missed, none invented), and a map that SLAM merged the measured
+map into gets its scale."""
+import pytest
+
 from sparse_nav.scanning import initial_scan, to_velocity_segments
 from sparse_nav.sim import SimConfig, Simulator, TrackingState, load_world
-from sparse_nav.slam_bridge import BridgeConfig, MapAnchors
+from sparse_nav.slam_bridge import BridgeConfig, MapAnchors, MapScales
 
 FRAME_S = 1.0 / 15.0
 CLOUD_PERIOD_S = 0.5  # the simulator node's all_points rate
@@ -51,3 +54,45 @@ def test_the_bridge_follows_every_merge_of_a_robot_scanning_in_place():
     # Right after a merge the pose may run ahead of the next cloud by one cloud period.
     # (The pose alone put 313 of 409 clouds in the wrong map.)
     assert agree >= 0.97 * checked, f"{checked - agree} of {checked} clouds in the wrong map"
+
+
+def test_a_young_map_that_slam_merged_the_measured_map_into_gets_its_scale():
+    # random:12 with a loss every 30 s: at 166 s SLAM merges young map 6 into map 0, and map 0
+    # into map 5, begun in the loss at 152 s and never measured; map 5 keeps its frame and its
+    # scale, 35 % smaller than map 0's. Only map 0 is measured here (the ground robot measures a
+    # map by its floor, which it finds in no cloud scaled 50 % wrong).
+    cfg = SimConfig(seed=0, robot="ground", force_loss_at_s=[30.0 * k for k in range(1, 10)],
+                    force_loss_duration_s=1.5)
+    sim = Simulator(load_world("random:12"), cfg)
+    anchors, scales = MapAnchors(BridgeConfig(), sim.camera_mount()), MapScales()
+    tracking, next_cloud_s, carried = False, 0.0, []
+    for v, w, duration in to_velocity_segments(initial_scan()):
+        sim.set_cmd_vel(v, w)
+        for _ in range(max(1, int(round(duration / FRAME_S)))):
+            sim.step(FRAME_S)
+            out = sim.slam_output()
+            if out.state == TrackingState.NOT_INITIALIZED and anchors.current is not None:
+                anchors.expect_new_map()
+            if out.state != TrackingState.OK or out.T_slam_camera is None:
+                if tracking:
+                    anchors.tracking_lost()
+                tracking = False
+                continue
+            tracking = True
+            _, event = anchors.update(out.T_slam_camera, scales.current.estimate()[0])
+            scales.on_map_event(anchors.current.index, event)
+            if anchors.current.index == 0 and scales.current.estimate()[2] < 5:
+                scales.current.add(1.0, sim.true_slam_scale())
+            if out.stamp_s >= next_cloud_s and len(out.all_points):
+                next_cloud_s = out.stamp_s + CLOUD_PERIOD_S
+                if anchors.on_cloud(out.all_points) is not None:
+                    scales.on_map_event(anchors.current.index, "switched")
+                if anchors.merge is not None and scales.on_merge(anchors.merge) is not None:
+                    carried.append((out.map_id, scales.current.estimate()[0],
+                                    sim.true_slam_scale()))
+    assert [m for m, _, _ in carried] == [5]
+    _, estimate, truth = carried[0]
+    assert estimate == pytest.approx(truth, rel=0.03)
+    # Map 5 ends the scan active and measured only by what it was given at the merge.
+    assert out.map_id == 5 and scales.current.estimate()[0] == pytest.approx(
+        sim.true_slam_scale(), rel=0.05)

@@ -227,6 +227,8 @@ def test_config_validation():
         BridgeConfig(merge_min_share=0).validate()
     with pytest.raises(ValueError, match="merge_sample_points"):
         BridgeConfig(merge_sample_points=0).validate()
+    with pytest.raises(ValueError, match="merge_scale_tolerance"):
+        BridgeConfig(merge_scale_tolerance=0).validate()
 
 
 def room_points(seed=0, n=3000):
@@ -330,3 +332,92 @@ def test_odometry_follows_the_camera_not_the_base():
     assert after == pytest.approx([1.0, 2.1, 0.5])
     assert np.linalg.norm(after - before) == pytest.approx(0.1 * np.sqrt(2.0))
 
+
+
+
+def _measured_map_then_young_maps(clouds, world, s0, young):
+    """Map 0's cloud (the whole room at s0 units per metre), then each young map's (a corner of
+    it, in its own frame and units); returns MapScales with five samples of map 0 and none of
+    the young maps."""
+    scales = MapScales()
+    scales.on_map_event(0, "first")
+    for _ in range(5):
+        scales.current.add(1.0, 1.0 / s0)
+    clouds.observe(0, in_slam(planar(0.0, 0.0, 0.0, 0.0), world, s0))
+    for index, (origin, units) in enumerate(young, start=1):
+        scales.on_map_event(index, "new_map")
+        clouds.observe(index, in_slam(origin, world[:200], units))
+    return scales
+
+
+def test_a_measured_map_merged_into_a_young_one_gives_it_its_scale():
+    # SLAM merges the map it tracks into an earlier young map it recognises, which keeps its
+    # frame and its scale, never measured: the measured map's samples carry over, converted.
+    world = room_points(seed=5)
+    s0, young = 2.0, (planar(0.3, 0.2, 0.0, np.radians(60)), 0.7)
+    clouds = MapClouds(BridgeConfig())
+    scales = _measured_map_then_young_maps(clouds, world, s0, [young])
+    scales.on_map_event(0, "switched")
+    assert clouds.observe(0, in_slam(*young[:1], world, young[1])) == 1
+    assert clouds.merge.left == 0 and clouds.merge.into == 1
+    assert clouds.merge.units_ratios == {0: pytest.approx(young[1] / s0, rel=0.02)}
+    scales.on_map_event(1, "switched")
+    assert scales.on_merge(clouds.merge) == 0
+    value, _, n = scales.current.estimate()
+    assert value == pytest.approx(1.0 / young[1], rel=0.02) and n == 5
+
+
+def test_a_map_merged_on_the_way_gives_its_scale_too():
+    # SLAM merged young map 2 into map 0, then map 0 into young map 1, within one frame: the pose
+    # went from map 2 to map 1, and map 0's points are in map 1's cloud.
+    world = room_points(seed=6)
+    s0 = 2.0
+    young = [(planar(0.3, 0.2, 0.0, np.radians(60)), 0.7), (planar(0.0, 0.4, 0.0, 1.0), 4.0)]
+    clouds = MapClouds(BridgeConfig())
+    scales = _measured_map_then_young_maps(clouds, world, s0, young)
+    scales.on_map_event(1, "switched")
+    clouds.merged_from = 2
+    assert clouds.observe(1, in_slam(young[0][0], world, young[0][1])) is None
+    assert clouds.merge == (2, 1, {0: pytest.approx(0.7 / s0, rel=0.02)})
+    assert scales.on_merge(clouds.merge) == 0
+    assert scales.current.estimate()[0] == pytest.approx(1.0 / 0.7, rel=0.02)
+
+
+def test_a_young_map_merged_into_a_measured_one_keeps_the_measured_scale():
+    world = room_points(seed=7)
+    s0, young = 2.0, (planar(0.3, 0.2, 0.0, np.radians(60)), 0.7)
+    clouds = MapClouds(BridgeConfig())
+    scales = _measured_map_then_young_maps(clouds, world, s0, [young])
+    # Map 1 merged into map 0, whose cloud had more points: no ratio is measured.
+    assert clouds.observe(1, in_slam(planar(0.0, 0.0, 0.0, 0.0), world, s0)) == 0
+    assert clouds.merge == (1, 0, {})
+    scales.on_map_event(0, "switched")
+    assert scales.on_merge(clouds.merge) is None
+    assert scales.current.estimate() == (pytest.approx(0.5), pytest.approx(0.625), 5)
+
+
+def test_a_merged_cloud_unlike_the_maps_last_one_gives_no_scale():
+    # Map 0 had seen half the room; the merged cloud holds all of it: the distances between
+    # points disagree at the quantiles, whatever scale is tried.
+    world = room_points(seed=8)
+    clouds = MapClouds(BridgeConfig())
+    clouds.observe(0, world[world[:, 0] > 0] * 2.0)
+    clouds.observe(1, world[:200] * 0.7 + 5.0)
+    assert clouds.observe(0, world * 0.7 + 5.0) == 1
+    assert clouds.merge == (0, 1, {})
+
+
+def test_a_rescaled_map_is_reanchored_where_the_robot_is():
+    anchors = MapAnchors(BridgeConfig(), MOUNT)
+    origin, s = planar(0.0, 0.0, 0.0, 0.0), 2.0
+    anchors.update(camera_in_slam(origin, origin, s), 1.0)
+    here = planar(1.0, 0.5, 0.0, 0.3)
+    base_before, _ = anchors.update(camera_in_slam(origin, here, s), 1.0)
+    # The map is read at 1 m per unit, twice its true scale; set right, it stays under the robot.
+    anchors.rescale(1.0 / s)
+    base, event = anchors.update(camera_in_slam(origin, here, s), 1.0 / s)
+    assert event is None
+    np.testing.assert_allclose(base, base_before, atol=1e-9)
+    on = planar(2.0, 0.5, 0.0, 0.3)
+    base, event = anchors.update(camera_in_slam(origin, on, s), 1.0 / s)
+    assert event is None and np.linalg.norm(base[:3, 3] - base_before[:3, 3]) == pytest.approx(1.0)

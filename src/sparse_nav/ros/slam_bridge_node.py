@@ -24,7 +24,7 @@ def _config_from_params():
     cfg = BridgeConfig()
     read_fields(cfg, ("pose_timeout_s", "min_tracked_points", "relocalise_tolerance_m",
                       "jump_threshold_m", "merge_sample_points", "merge_match_tolerance",
-                      "merge_min_share"))
+                      "merge_min_share", "merge_scale_tolerance"))
     cfg.validate()
     return cfg
 
@@ -212,6 +212,17 @@ class SlamBridgeNode:
             self._on_map_event("switched")
             anchor = self.anchors.current
         self.points_before_loss = len(points)
+        merge = self.anchors.merge
+        source = None if merge is None else self.scales.on_merge(merge)
+        if source is not None:
+            value, _, n = self.scales.current.estimate()
+            self.anchors.rescale(value)
+            self._publish_scale()
+            rospy.loginfo("slam_bridge: SLAM merged map %d into map %d, which holds map %d's "
+                          "points at %.3f of its units to one: their scale samples carried over "
+                          "(%.3f m per unit from %d), the map re-anchored where the robot is",
+                          merge.left, merge.into, source, merge.units_ratios[source], value, n)
+            return  # in the map's old scale; the next pose re-anchors it
         metric = points * anchor.metres_per_unit
         metric = metric @ anchor.t_map_slam[:3, :3].T + anchor.t_map_slam[:3, 3]
         self.n_points = len(metric)

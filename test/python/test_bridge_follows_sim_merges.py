@@ -13,13 +13,10 @@ FRAME_S = 1.0 / 15.0
 CLOUD_PERIOD_S = 0.5  # the simulator node's all_points rate
 
 
-def _replay(seed):
-    cfg = SimConfig(seed=seed, robot="ground", force_loss_at_s=[20.0 * k for k in range(1, 7)],
-                    force_loss_duration_s=1.5)
-    sim = Simulator(load_world("one_room"), cfg)
-    anchors = MapAnchors(BridgeConfig(), sim.camera_mount())
-    anchor_of_map = {}    # simulator map id -> the bridge anchor opened for it
-    sim_merges, agree, checked = 0, 0, 0
+def _tracked_frames(sim, anchors, metres_per_unit):
+    """Steps the simulator through the ground robot's initial scan, feeding MapAnchors its poses
+    (read at metres_per_unit()); yields (SLAM output, anchor event, cloud due) for every tracked
+    frame, a cloud due every CLOUD_PERIOD_S."""
     tracking, next_cloud_s = False, 0.0
     for v, w, duration in to_velocity_segments(initial_scan()):
         sim.set_cmd_vel(v, w)
@@ -34,16 +31,29 @@ def _replay(seed):
                 tracking = False
                 continue
             tracking = True
-            sim_merges += out.merged
-            _, event = anchors.update(out.T_slam_camera, sim.true_slam_scale())
-            if event in ("first", "new_map"):
-                anchor_of_map.setdefault(out.map_id, anchors.current.index)
-            if out.stamp_s >= next_cloud_s and len(out.all_points):
+            _, event = anchors.update(out.T_slam_camera, metres_per_unit())
+            cloud_due = out.stamp_s >= next_cloud_s and len(out.all_points) > 0
+            if cloud_due:
                 next_cloud_s = out.stamp_s + CLOUD_PERIOD_S
-                anchors.on_cloud(out.all_points)
-                if out.map_id in anchor_of_map:
-                    checked += 1
-                    agree += anchors.current.index == anchor_of_map[out.map_id]
+            yield out, event, cloud_due
+
+
+def _replay(seed):
+    cfg = SimConfig(seed=seed, robot="ground", force_loss_at_s=[20.0 * k for k in range(1, 7)],
+                    force_loss_duration_s=1.5)
+    sim = Simulator(load_world("one_room"), cfg)
+    anchors = MapAnchors(BridgeConfig(), sim.camera_mount())
+    anchor_of_map = {}    # simulator map id -> the bridge anchor opened for it
+    sim_merges, agree, checked = 0, 0, 0
+    for out, event, cloud_due in _tracked_frames(sim, anchors, sim.true_slam_scale):
+        sim_merges += out.merged
+        if event in ("first", "new_map"):
+            anchor_of_map.setdefault(out.map_id, anchors.current.index)
+        if cloud_due:
+            anchors.on_cloud(out.all_points)
+            if out.map_id in anchor_of_map:
+                checked += 1
+                agree += anchors.current.index == anchor_of_map[out.map_id]
     return sim_merges, agree, checked
 
 
@@ -65,31 +75,17 @@ def test_a_young_map_that_slam_merged_the_measured_map_into_gets_its_scale():
                     force_loss_duration_s=1.5)
     sim = Simulator(load_world("random:12"), cfg)
     anchors, scales = MapAnchors(BridgeConfig(), sim.camera_mount()), MapScales()
-    tracking, next_cloud_s, carried = False, 0.0, []
-    for v, w, duration in to_velocity_segments(initial_scan()):
-        sim.set_cmd_vel(v, w)
-        for _ in range(max(1, int(round(duration / FRAME_S)))):
-            sim.step(FRAME_S)
-            out = sim.slam_output()
-            if out.state == TrackingState.NOT_INITIALIZED and anchors.current is not None:
-                anchors.expect_new_map()
-            if out.state != TrackingState.OK or out.T_slam_camera is None:
-                if tracking:
-                    anchors.tracking_lost()
-                tracking = False
-                continue
-            tracking = True
-            _, event = anchors.update(out.T_slam_camera, scales.current.estimate()[0])
-            scales.on_map_event(anchors.current.index, event)
-            if anchors.current.index == 0 and scales.current.estimate()[2] < 5:
-                scales.current.add(1.0, sim.true_slam_scale())
-            if out.stamp_s >= next_cloud_s and len(out.all_points):
-                next_cloud_s = out.stamp_s + CLOUD_PERIOD_S
-                if anchors.on_cloud(out.all_points) is not None:
-                    scales.on_map_event(anchors.current.index, "switched")
-                if anchors.merge is not None and scales.on_merge(anchors.merge) is not None:
-                    carried.append((out.map_id, scales.current.estimate()[0],
-                                    sim.true_slam_scale()))
+    carried = []
+    for out, event, cloud_due in _tracked_frames(sim, anchors,
+                                                 lambda: scales.current.estimate()[0]):
+        scales.on_map_event(anchors.current.index, event)
+        if anchors.current.index == 0 and scales.current.estimate()[2] < 5:
+            scales.current.add(1.0, sim.true_slam_scale())
+        if cloud_due:
+            if anchors.on_cloud(out.all_points) is not None:
+                scales.on_map_event(anchors.current.index, "switched")
+            if anchors.merge is not None and scales.on_merge(anchors.merge) is not None:
+                carried.append((out.map_id, scales.current.estimate()[0], sim.true_slam_scale()))
     assert [m for m, _, _ in carried] == [5]
     _, estimate, truth = carried[0]
     assert estimate == pytest.approx(truth, rel=0.03)

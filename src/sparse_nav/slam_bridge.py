@@ -147,7 +147,6 @@ class MapAnchors:
         self._accept_next = False
         self._reanchor_next = False
         self._clouds = MapClouds(config)
-        self.merge = None  # the MapMerge the latest cloud showed, if any
 
     def tracking_lost(self):
         """The next pose may be in another map (a new one, or an earlier one after a merge)."""
@@ -185,25 +184,22 @@ class MapAnchors:
             event = "first"
         else:
             if self._reanchor_next and not self._needs_check:
-                self.current.t_map_slam = self._anchor_at(
-                    t_slam_cam, self.current.metres_per_unit,
-                    planar(*self.last_base[:3, 3], yaw_of(self.last_base)))
+                self._reanchor_at_last_base(t_slam_cam)
             candidate = self.current.base_pose(t_slam_cam, self._t_cam_base)
             step = np.linalg.norm(candidate[:3, 3] - self.last_base[:3, 3])
             jumped = step > self._cfg.jump_threshold_m and not self._accept_next
             if self._needs_check or jumped:
                 left = self.current
                 best = None if self._new_map_expected else self._best_anchor(t_slam_cam)
-                level = planar(*self.last_base[:3, 3], yaw_of(self.last_base))
                 if best is None and not self._needs_check:
                     # A jump while tracking is a merge or a loop closure, never a new map (SLAM
                     # begins one only after it lost tracking): the map goes on from where the
                     # robot was until its cloud tells which earlier map it joined (on_cloud).
-                    self.current.t_map_slam = self._anchor_at(t_slam_cam, self.current
-                                                              .metres_per_unit, level)
+                    self._reanchor_at_last_base(t_slam_cam)
                     event = "reframed"
                 elif best is None:
-                    self.current = self._new_anchor(t_slam_cam, metres_per_unit, level)
+                    self.current = self._new_anchor(t_slam_cam, metres_per_unit,
+                                                    self._level_last_base())
                     event = "new_map"
                 elif best is not self.current:
                     self.current = best
@@ -223,17 +219,15 @@ class MapAnchors:
     def on_cloud(self, points):
         """The active SLAM map's cloud (SLAM units) while tracking. Returns the index of the
         earlier map whose points reappear in it (SLAM merged the current map into that one, and
-        the next pose is read through its anchor, whatever step that makes), else None. Sets
-        ``merge`` when this is the first cloud of a merge, found by this cloud or by the pose.
+        the next pose is read through its anchor, whatever step that makes), else None. ``merge``
+        then tells whether this is the first cloud of a merge, found by this cloud or by the pose.
 
         The map left is retired, and so is the map the previous cloud belonged to: when the pose
         jumped at the merge, a new anchor may stand between them."""
-        self.merge = None
         if self.current is None:
             return None
         previous = self._clouds.last_index
         merged = self._clouds.observe(self.current.index, points)
-        self.merge = self._clouds.merge
         if merged is None:
             return None
         for left in (self.current.index, previous):
@@ -243,6 +237,19 @@ class MapAnchors:
         self.current.retired = False
         self._accept_next = True
         return merged
+
+    @property
+    def merge(self):
+        """The MapMerge the latest cloud was the first of, if any."""
+        return self._clouds.merge
+
+    def _level_last_base(self):
+        return planar(*self.last_base[:3, 3], yaw_of(self.last_base))
+
+    def _reanchor_at_last_base(self, t_slam_cam):
+        """Anchors the current map so that this pose puts the base where it last was."""
+        self.current.t_map_slam = self._anchor_at(t_slam_cam, self.current.metres_per_unit,
+                                                  self._level_last_base())
 
     def _anchor_at(self, t_slam_cam, metres_per_unit, t_map_base):
         """T_map_slam that puts the base at t_map_base for this camera pose."""

@@ -33,9 +33,11 @@ def free_port():
         return s.getsockname()[1]
 
 
-def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir):
+def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir,
+                keep_all_logs=False):
     """One mission; returns the report (or an error entry) with the run's wall time. A run that
-    fails keeps its ROS logs, its report and summary.png in failed_logs_dir, for the reason."""
+    fails (any run, with keep_all_logs) keeps its ROS logs, its report and summary.png in
+    failed_logs_dir, for the reason."""
     name = f"{world.replace(':', '_')}_{robot}_{'stress' if stress else 'plain'}"
     out = os.path.join(tmp, name)
     args = ["roslaunch", "-p", str(free_port()), "sparse_nav", "demo.launch", f"world:={world}",
@@ -61,7 +63,7 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
     except (OSError, ValueError) as exc:
         error = f"no report: {exc}"
     logs = None
-    if report is None or not report.get("success"):
+    if keep_all_logs or report is None or not report.get("success"):
         logs = _keep_logs(out, os.path.join(ros_home, "log", "latest"),
                           os.path.join(failed_logs_dir, name))
     shutil.rmtree(out, ignore_errors=True)
@@ -117,6 +119,8 @@ def main(argv=None):
     parser.add_argument("--rate-factor", type=float, default=4.0)
     parser.add_argument("--no-stress", action="store_true", help="skip the stressed runs")
     parser.add_argument("--stress-only", action="store_true", help="skip the plain runs")
+    parser.add_argument("--keep-all-logs", action="store_true",
+                        help="keep the logs of successful runs too (next to the failed ones)")
     parser.add_argument("--out", default=os.path.join(HERE, "results", "mission.json"))
     args = parser.parse_args(argv)
     if shutil.which("roslaunch") is None:
@@ -132,7 +136,7 @@ def main(argv=None):
                 runs = []
                 for seed in range(args.first_seed, args.first_seed + args.worlds):
                     run = run_mission(f"random:{seed}", robot, stress, args.sim_time_limit_s,
-                                      args.rate_factor, tmp, failed_logs)
+                                      args.rate_factor, tmp, failed_logs, args.keep_all_logs)
                     print(json.dumps(run), flush=True)
                     runs.append(run)
                 key = f"{robot}{' stressed' if stress else ''}"

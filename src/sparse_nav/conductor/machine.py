@@ -463,16 +463,18 @@ class Conductor:
                 if self.state != State.RECOVER:  # RECOVER resumes the state it interrupted
                     self._resume_state = self.state
                 self._count_goal_loss()
+                tracked = obs.slam_tracked_points or 0
+                lost = f"SLAM tracking lost ({tracked} map points tracked at it)"
                 if self.phase == Phase.LOOK_AROUND:
-                    if (obs.slam_tracked_points or 0) >= cfg.sudden_loss_min_tracked_points:
+                    if tracked >= cfg.sudden_loss_min_tracked_points:
                         self._look_sudden_losses += 1
                     else:
                         self._look_losses += 1
                 if self.state == State.START and obs.scan_running:
                     # The scan's retry mechanism undoes and redoes steps until tracking is back.
-                    self._set(t, State.LOST, self.phase, "SLAM tracking lost: the scan retries")
+                    self._set(t, State.LOST, self.phase, f"{lost}: the scan retries")
                     return []
-                self._set(t, State.LOST, self.phase, "SLAM tracking lost: stopped, relocalising")
+                self._set(t, State.LOST, self.phase, f"{lost}: stopped, relocalising")
                 return [Action(ActionKind.STOP), self._scan("relocalise")]
             if t - self._lost_since_s > cfg.lost_timeout_s:
                 # Within left_room_margin_m the robot may still be in the door; but one there,

@@ -674,6 +674,18 @@ def test_a_sudden_loss_does_not_make_a_look_partial_a_view_thinning_out_does():
     assert "tracking lost looking around (1 losses)" in m.conductor.reason
 
 
+def test_a_loss_says_how_many_map_points_were_tracked_at_it():
+    # The count tells a sudden loss from a view thinning out when a look's verdict is read later.
+    m = looking_around()
+    m.tick(tracking_lost=True, slam_tracked_points=37)
+    assert (m.conductor.state, m.conductor.reason) == (
+        State.LOST, "SLAM tracking lost (37 map points tracked at it): the scan retries")
+    m = passing_through()
+    m.tick(tracking_lost=True, slam_tracked_points=None)
+    assert (m.conductor.state, m.conductor.reason) == (
+        State.LOST, "SLAM tracking lost (0 map points tracked at it): stopped, relocalising")
+
+
 def test_a_partial_look_names_the_map_it_began_in_even_when_the_new_one_holds_more_of_it():
     m = looking_around()
     m.tick(slam_map_index=0, walls_around=WALLS_OUTSIDE)

@@ -55,6 +55,27 @@ class LookArounds:
         self._phase = phase
 
 
+class PairedTruthScale:
+    """The simulator's true scale of the SLAM map the bridge's estimate is for.
+
+    The simulator publishes the true scale of its active map from the frame that map
+    initialises, while the bridge names a new map only at its next pose; and a drone landing
+    after its mission often loses tracking and starts a new map at once. A truth read while
+    the bridge is lost can therefore belong to a map the estimate knows nothing of, so truths
+    are kept only while the bridge tracks."""
+
+    def __init__(self):
+        self.value = None
+        self._tracking = False
+
+    def on_tracking(self, tracking):
+        self._tracking = bool(tracking)
+
+    def on_truth(self, metres_per_unit):
+        if self._tracking and math.isfinite(metres_per_unit):
+            self.value = float(metres_per_unit)
+
+
 def tally_look_arounds(records):
     """Counts of look-around records by verdict (out or inside) and truth."""
     counts = {"out_truly_outside": 0, "out_truly_inside": 0, "inside_truly_outside": 0,

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from sparse_nav.mission_report import (LookArounds, MapAlignments, evaluate, exit_error_m,
-                                       left_the_room, path_length_m, planar_alignment,
-                                       tally_look_arounds)
+from sparse_nav.mission_report import (LookArounds, MapAlignments, PairedTruthScale, evaluate,
+                                       exit_error_m, left_the_room, path_length_m,
+                                       planar_alignment, tally_look_arounds)
 from sparse_nav.sim.world import load_world
 from sparse_nav.transforms import make_transform, planar, quaternion_to_matrix
 
@@ -47,6 +47,21 @@ def test_lengths_and_errors():
     assert path_length_m([(0, 0), (3, 4), (3, 5)]) == pytest.approx(6.0)
     assert path_length_m([(1, 1)]) == 0.0
     assert exit_error_m(load_world("one_room"), None) is None
+
+
+def test_the_true_scale_is_the_one_of_the_map_tracked_in_not_of_one_begun_while_lost():
+    truth = PairedTruthScale()
+    truth.on_truth(2.0)  # before any tracking: no map the bridge estimates for
+    assert truth.value is None
+    truth.on_tracking(True)
+    truth.on_truth(0.48)
+    truth.on_tracking(False)
+    truth.on_truth(2.7)  # a new map the simulator began while the bridge was lost (a landing)
+    assert truth.value == 0.48
+    truth.on_tracking(True)  # the bridge names the new map: its truth counts from now on
+    truth.on_truth(2.7)
+    truth.on_truth(float("nan"))
+    assert truth.value == 2.7
 
 
 def test_the_planar_alignment_puts_the_estimate_on_the_truth_and_ignores_tilt():

@@ -22,7 +22,7 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
-from sparse_nav.mission_report import LookArounds, MapAlignments, evaluate
+from sparse_nav.mission_report import LookArounds, MapAlignments, PairedTruthScale, evaluate
 from sparse_nav.msg import ConductorState, ExitCandidates, FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, pose_to_matrix, transform_to_matrix
@@ -73,6 +73,7 @@ class DemoNode:
         self.world = load_ros_world(self.world_name)
         self.conductor_states = []
         self.look_arounds = LookArounds(self.world)
+        self.truth_scale = PairedTruthScale()
         self.t_truth_map = None  # the simulator's map -> sim_world, for the first SLAM map
         self.alignments = MapAlignments()
         self.truth_history = collections.deque(maxlen=200)  # ground_truth/odom, for alignment
@@ -103,6 +104,9 @@ class DemoNode:
                 self.responses.append(msg.data)
             elif topic == "slam/state":
                 self.states.append(msg)
+                self.truth_scale.on_tracking(msg.state in (SlamState.OK, SlamState.NEW_MAP))
+            elif topic == "ground_truth/slam_scale":
+                self.truth_scale.on_truth(msg.data)
             elif topic == "conductor/state":
                 self.conductor_states.append(msg)
                 self.look_arounds.observe(rospy.Time.now().to_sec(), msg.phase, msg.reason,
@@ -316,9 +320,9 @@ class DemoNode:
                 visited.append([c.state, c.phase])
 
         scale = latest.get("slam/scale")
-        true_scale = latest.get("ground_truth/slam_scale")
         estimated = scale.metres_per_unit if scale else None
-        truth = true_scale.data if true_scale else None
+        with self.lock:
+            truth = self.truth_scale.value
         report = {
             "success": judgement["success"],
             "world": world.name,

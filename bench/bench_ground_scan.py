@@ -16,6 +16,7 @@ import argparse
 import json
 import math
 import os
+import re
 import sys
 import time
 
@@ -64,9 +65,19 @@ def scan_once(world_name, seed, hit_m, speed_m_s, turn_rate_rad_s, turn_deg):
     return row
 
 
+def _worlds(spec):
+    """random:A-B -> random:A .. random:B; anything else is one world's name."""
+    match = re.fullmatch(r"random:(\d+)-(\d+)", spec)
+    if not match:
+        return [spec]
+    return [f"random:{n}" for n in range(int(match.group(1)), int(match.group(2)) + 1)]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--world", default="one_room")
+    parser.add_argument("--world", default="one_room",
+                        help="a world, or generated worlds random:A-B (seeds A..B), each scanned "
+                             "with every seed")
     parser.add_argument("--seeds", type=int, default=10, help="seeds first .. first + N - 1")
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--hit-m", type=float, default=1.0,
@@ -81,13 +92,15 @@ def main():
                         help="where the rows and the summary go (default: %(default)s)")
     args = parser.parse_args()
     rows = []
-    for seed in range(args.first_seed, args.first_seed + args.seeds):
-        start = time.time()
-        row = scan_once(args.world, seed, args.hit_m, args.speed_m_s, args.turn_rate_rad_s,
-                        args.turn_deg)
-        row["wall_s"] = round(time.time() - start, 1)
-        rows.append(row)
-        print(json.dumps(row), flush=True)
+    for world in _worlds(args.world):
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
+            start = time.time()
+            row = scan_once(world, seed, args.hit_m, args.speed_m_s, args.turn_rate_rad_s,
+                            args.turn_deg)
+            row["world"] = world
+            row["wall_s"] = round(time.time() - start, 1)
+            rows.append(row)
+            print(json.dumps(row), flush=True)
     hits = sum(r["hit"] for r in rows)
     summary = {"world": args.world, "seeds": args.seeds, "turn_deg": args.turn_deg, "hits": hits,
                "hit_rate": hits / max(len(rows), 1), "hit_m": args.hit_m,

@@ -59,10 +59,10 @@ class PairedTruthScale:
     """The simulator's true scale of the SLAM map the bridge's estimate is for.
 
     The simulator publishes the true scale of its active map from the frame that map
-    initialises, while the bridge names a new map only at its next pose; and a drone landing
-    after its mission often loses tracking and starts a new map at once. A truth read while
-    the bridge is lost can therefore belong to a map the estimate knows nothing of, so truths
-    are kept only while the bridge tracks."""
+    initialises, while the bridge names a new map only at its next pose; a robot that loses
+    tracking at the mission's end (a drone landing) can start a map the bridge never names. A
+    truth read while the bridge is lost can therefore belong to a map the estimate knows
+    nothing of, so truths are kept only while the bridge tracks."""
 
     def __init__(self):
         self.value = None

@@ -282,6 +282,7 @@ class DemoNode:
             bag, self.bag = self.bag, None
             latest = dict(self.latest)
             states = list(self.states)
+            true_scale = self.truth_scale.value  # of the same moment as latest's slam/scale
         bag.close()
         raw = latest.get("orb_slam3/all_points")
         raw_points = cloud_to_points(raw) if raw is not None else np.empty((0, 3))
@@ -321,8 +322,6 @@ class DemoNode:
 
         scale = latest.get("slam/scale")
         estimated = scale.metres_per_unit if scale else None
-        with self.lock:
-            truth = self.truth_scale.value
         report = {
             "success": judgement["success"],
             "world": world.name,
@@ -345,8 +344,9 @@ class DemoNode:
                 "confidence": scale.confidence if scale else 0.0,
                 "source": scale.source if scale else None,
                 "samples": scale.n_samples if scale else 0,
-                "true_metres_per_unit": truth,
-                "relative_error": (abs(estimated - truth) / truth) if estimated and truth else None,
+                "true_metres_per_unit": true_scale,
+                "relative_error": (abs(estimated - true_scale) / true_scale)
+                if estimated and true_scale else None,
             },
             "map": grid_stats(grid),
             "drone_responses": {"ok": self.responses.count("ok"),

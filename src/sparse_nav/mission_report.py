@@ -4,6 +4,7 @@ import math
 import numpy as np
 
 from sparse_nav.sim.world import point_in_polygon
+from sparse_nav.slam_bridge import LOST
 from sparse_nav.transforms import invert, planar, yaw_of
 
 
@@ -24,6 +25,13 @@ def exit_error_m(world, exit_xy):
     if exit_xy is None or not world.exits:
         return None
     return min(math.dist(exit_xy, (e["x"], e["y"])) for e in world.exits)
+
+
+def tracking_losses(slam_states):
+    """Losses in a run's slam/state codes: each entry into LOST counts once (slam_bridge says
+    LOST again, still lost, when SLAM gives up its map)."""
+    return sum(1 for before, state in zip((None,) + tuple(slam_states), slam_states)
+               if state == LOST and before != LOST)
 
 
 def evaluate(world, final_phase, true_track, exit_truth_xy):

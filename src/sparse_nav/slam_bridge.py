@@ -71,6 +71,15 @@ class StateTracker:
         self._wrapper_code = int(code)
         return self._ever_ok and self._wrapper_code == ORB_NOT_INITIALIZED
 
+    @property
+    def map_given_up(self):
+        """SLAM has given up the map it tracked in (ORB-SLAM3 LOST, or initialising a new map
+        after tracking): tracking comes back only in a new map, which needs a baseline of
+        motion, or by a merge. False while SLAM still relocalises in its map (RECENTLY_LOST),
+        and without the wrapper's state, which alone can tell."""
+        return self._wrapper_code == ORB_LOST or \
+            (self._ever_ok and self._wrapper_code == ORB_NOT_INITIALIZED)
+
     def on_pose(self, stamp_s):
         """Records a pose time; returns the gap (s) since the previous pose when it is longer than
         pose_timeout_s (tracking was lost in between, even if nobody looked at that moment)."""

@@ -846,6 +846,28 @@ def test_a_scan_whose_retries_do_not_bring_tracking_back_gives_way_to_relocalisi
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "resume")]
 
 
+def test_a_scan_whose_slam_gave_up_its_map_relocalises_at_once():
+    m = Mission(ConductorConfig(wall_scan_enabled=False, scan_retry_lost_s=15.0))
+    m.tick(start_requested=True)
+    m.tick(scan_running=True)
+    assert m.tick(tracking_lost=True) == []  # recently lost: SLAM relocalises in its map
+    assert "the scan retries" in m.conductor.reason
+    actions = m.tick(dt=0.5, slam_map_given_up=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
+                                                      (ActionKind.SCAN, "relocalise")]
+    assert m.conductor.reason == ("SLAM gave up its map, and the scan's retries give no "
+                                  "baseline for a new one: relocalising")
+    # A loss that gives the map up at once (a blinded camera) relocalises on its first tick.
+    m2 = Mission(ConductorConfig(wall_scan_enabled=False))
+    m2.tick(start_requested=True)
+    m2.tick(scan_running=True)
+    actions = m2.tick(tracking_lost=True, slam_tracked_points=250, slam_map_given_up=True)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
+                                                              (ActionKind.SCAN, "relocalise")]
+    assert m2.conductor.reason == ("SLAM tracking lost (250 map points tracked at it), and SLAM "
+                                   "gave up its map: stopped, relocalising")
+
+
 def test_a_scan_stopped_for_relocalising_goes_on_where_it_was_cut():
     m = Mission(ConductorConfig(scan_retry_lost_s=15.0, max_scan_resumes=2))
     m.tick(start_requested=True)

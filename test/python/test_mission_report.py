@@ -4,8 +4,9 @@ import pytest
 
 from sparse_nav.mission_report import (LookArounds, MapAlignments, PairedTruthScale, evaluate,
                                        exit_error_m, left_the_room, path_length_m,
-                                       planar_alignment, tally_look_arounds)
+                                       planar_alignment, tally_look_arounds, tracking_losses)
 from sparse_nav.sim.world import load_world
+from sparse_nav.slam_bridge import LOST, NEW_MAP, OK
 from sparse_nav.transforms import make_transform, planar, quaternion_to_matrix
 
 
@@ -89,3 +90,9 @@ def test_each_slam_map_keeps_its_own_alignment_and_a_switch_settles_first():
     alignments.add(4.5, True, 1, truth, planar(1.0, 0.0, 0.0, 0.5))
     assert np.allclose(alignments.get(1), planar(1.0, 1.0, 0.0, 0.0))  # same heading, 1 m off
     assert alignments.get(0) is first  # merged back into map 0: its own alignment again
+
+
+def test_a_loss_counts_once_however_often_lost_is_said():
+    # LOST, then LOST again once SLAM gives up its map, then a new map: one loss.
+    assert tracking_losses([OK, LOST, LOST, NEW_MAP, OK, LOST, OK]) == 2
+    assert tracking_losses([LOST]) == 1 and tracking_losses([]) == 0

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sparse_nav.slam_bridge import (LOST, NOT_INITIALIZED, OK, ORB_LOST, ORB_NOT_INITIALIZED,
-                                    ORB_OK, BridgeConfig, DroneMoveScale, MapAnchors, MapClouds,
+                                    ORB_OK, ORB_RECENTLY_LOST, BridgeConfig, DroneMoveScale, MapAnchors, MapClouds,
                                     MapScales, ScaleEstimator, StateTracker,
                                     odometry_camera_position)
 from sparse_nav.transforms import invert, make_transform, planar, yaw_of
@@ -31,6 +31,25 @@ def test_state_from_wrapper():
     assert state == LOST and "lost" in reason
     assert tracker.on_wrapper_state(ORB_NOT_INITIALIZED), "a new map after tracking worked"
     assert tracker.source == "wrapper"
+
+
+def test_a_map_is_given_up_when_slam_is_lost_or_begins_another_not_while_recently_lost():
+    tracker = StateTracker(BridgeConfig())
+    tracker.on_wrapper_state(ORB_NOT_INITIALIZED)
+    assert not tracker.map_given_up, "no map yet to give up"
+    tracker.on_wrapper_state(ORB_OK)
+    tracker.evaluate(0.0)
+    assert not tracker.map_given_up
+    tracker.on_wrapper_state(ORB_RECENTLY_LOST)
+    assert tracker.evaluate(0.0)[0] == LOST and not tracker.map_given_up
+    tracker.on_wrapper_state(ORB_LOST)
+    assert tracker.map_given_up
+    tracker.on_wrapper_state(ORB_NOT_INITIALIZED)
+    assert tracker.map_given_up
+    inferred = StateTracker(BridgeConfig(pose_timeout_s=0.5))
+    inferred.on_pose(1.0)
+    inferred.evaluate(1.0)
+    assert inferred.evaluate(5.0)[0] == LOST and not inferred.map_given_up, "cannot tell"
 
 
 def test_state_inferred_from_staleness_and_tracked_points():

@@ -117,6 +117,10 @@ class SimBridgeTest(unittest.TestCase):
                         f"the source never falls back once set: {sources}")
         self.assertIn(SlamState.LOST, names[max(first_ok, first_expected):],
                       f"the {self.expect_source} state reports the forced loss")
+        # The forced loss makes the simulated SLAM begin a new map: only its wrapper state says so.
+        given_up = [s.map_given_up for s in states[first_ok:] if s.state == SlamState.LOST]
+        self.assertEqual(any(given_up), self.expect_source == "wrapper",
+                         f"map_given_up at the losses: {given_up}")
 
         for parent, child in (("map", "base_link"), ("map", "odom"), ("odom", "base_link"),
                               ("base_link", "camera_optical"), ("map", "sim_world")):

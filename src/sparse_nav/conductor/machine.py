@@ -82,6 +82,8 @@ class Observation:
     tracking_lost: bool = False          # SLAM lost its map (not: not initialised yet)
     slam_tracked_points: Optional[int] = None  # map points tracked at the newest SLAM state
                                          # (at a loss: the count it was lost with)
+    slam_map_given_up: bool = False      # lost, and SLAM gave up its map: tracking comes back
+                                         # in a new map (which needs a baseline) or by a merge
     slam_map_index: Optional[int] = None  # the SLAM map the robot tracks in (slam/state)
     # (from, into) SLAM map indices: the map changed while tracking, so SLAM merged `from` into
     # `into` (or re-anchored it there): what was found in `from` lives on in `into`.
@@ -470,7 +472,9 @@ class Conductor:
                         self._look_sudden_losses += 1
                     else:
                         self._look_losses += 1
-                if self.state == State.START and obs.scan_running:
+                if obs.slam_map_given_up:
+                    lost += ", and SLAM gave up its map"
+                elif self.state == State.START and obs.scan_running:
                     # The scan's retry mechanism undoes and redoes steps until tracking is back.
                     self._set(t, State.LOST, self.phase, f"{lost}: the scan retries")
                     return []
@@ -486,11 +490,18 @@ class Conductor:
                 return self._give_up(t, f"SLAM tracking lost for more than {cfg.lost_timeout_s:g} s")
             if not obs.scan_running:
                 return [self._scan("relocalise")]
-            if self._scan_kind != "relocalise" and t - self._lost_since_s > cfg.scan_retry_lost_s:
+            if self._scan_kind != "relocalise":
                 # A retried step goes back and forth along one short line: too little baseline
-                # for SLAM to start a new map (0.3 m for 30 s in a ground robot's scan).
-                self._set(t, State.LOST, self.phase, f"SLAM tracking not back in "
-                          f"{cfg.scan_retry_lost_s:g} s of the scan's retries: relocalising")
+                # for SLAM to start a new map (0.3 m for 30 s in a ground robot's scan). The
+                # retries bring back a view of the map, which helps only while SLAM still
+                # relocalises in it.
+                if obs.slam_map_given_up:
+                    why = "SLAM gave up its map, and the scan's retries give no baseline for a new one"
+                elif t - self._lost_since_s > cfg.scan_retry_lost_s:
+                    why = f"SLAM tracking not back in {cfg.scan_retry_lost_s:g} s of the scan's retries"
+                else:
+                    return []
+                self._set(t, State.LOST, self.phase, f"{why}: relocalising")
                 return [Action(ActionKind.STOP), self._scan("relocalise")]
             return []
         if self.state == State.LOST and self._goal_in_another_map(obs):

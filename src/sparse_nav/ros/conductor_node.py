@@ -142,6 +142,7 @@ class ConductorNode:
                     # No loss in between: SLAM merged the map (or the bridge re-anchored it).
                     self.obs.slam_merges += ((previous, msg.map_index),)
             self.obs.tracking_lost = lost
+            self.obs.slam_map_given_up = lost and msg.map_given_up
             self.obs.slam_map_index = msg.map_index
             self.obs.slam_tracked_points = msg.n_tracked_points
 

@@ -22,7 +22,8 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
-from sparse_nav.mission_report import LookArounds, MapAlignments, PairedTruthScale, evaluate
+from sparse_nav.mission_report import (LookArounds, MapAlignments, PairedTruthScale, evaluate,
+                                       tracking_losses)
 from sparse_nav.msg import ConductorState, ExitCandidates, FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, pose_to_matrix, transform_to_matrix
@@ -336,7 +337,7 @@ class DemoNode:
             "states": visited,
             "look_arounds": look_arounds,
             "slam_points": int(len(raw_points)),
-            "tracking_losses": sum(1 for s in states if s.state == SlamState.LOST),
+            "tracking_losses": tracking_losses([s.state for s in states]),
             "slam_maps": len({s.map_index for s in states}),
             "final_slam_state": states[-1].reason if states else "no state received",
             "scale": {

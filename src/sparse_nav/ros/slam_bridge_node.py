@@ -65,6 +65,7 @@ class SlamBridgeNode:
         self.last_slam_position = None
         self.last_odom_position = None
         self.state, self.reason = None, ""
+        self.given_up_published = False
         self.new_map_pending = False
         self.n_poses = 0
         self.n_points = 0
@@ -311,7 +312,8 @@ class SlamBridgeNode:
         if state == OK and self.new_map_pending:
             published, reason = NEW_MAP, self.map_event
             self.new_map_pending = False
-        if published != self.state or published == NEW_MAP:
+        given_up = published == LOST and self.tracker.map_given_up
+        if published != self.state or published == NEW_MAP or given_up != self.given_up_published:
             self._publish_state(published, reason, now)
         self.state = OK if published == NEW_MAP else state
         self.reason = reason
@@ -323,6 +325,7 @@ class SlamBridgeNode:
         msg.state = state
         msg.map_index = self.anchors.current.index if self.anchors.current else 0
         msg.n_tracked_points = self.tracker.n_tracked
+        msg.map_given_up = self.given_up_published = state == LOST and self.tracker.map_given_up
         msg.source = self.tracker.source
         msg.reason = reason
         self.state_pub.publish(msg)

@@ -69,6 +69,9 @@ class StateTracker:
     def on_wrapper_state(self, code):
         """Returns True when this state means a new map is being initialised after tracking."""
         self._wrapper_code = int(code)
+        return self._initialising_new_map()
+
+    def _initialising_new_map(self):
         return self._ever_ok and self._wrapper_code == ORB_NOT_INITIALIZED
 
     @property
@@ -77,8 +80,7 @@ class StateTracker:
         after tracking): tracking comes back only in a new map, which needs a baseline of
         motion, or by a merge. False while SLAM still relocalises in its map (RECENTLY_LOST),
         and without the wrapper's state, which alone can tell."""
-        return self._wrapper_code == ORB_LOST or \
-            (self._ever_ok and self._wrapper_code == ORB_NOT_INITIALIZED)
+        return self._wrapper_code == ORB_LOST or self._initialising_new_map()
 
     def on_pose(self, stamp_s):
         """Records a pose time; returns the gap (s) since the previous pose when it is longer than

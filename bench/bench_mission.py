@@ -75,7 +75,8 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
         return {"world": world, "robot": robot, "error": error, "logs": logs}
     scale = report.get("scale") or {}
     return {"world": world, "robot": robot, "success": report["success"],
-            "sim_time_s": report["sim_time_s"], "tracking_losses": report["tracking_losses"],
+            "sim_time_s": report["sim_time_s"], "ended_at_s": report.get("ended_at_s"),
+            "tracking_losses": report["tracking_losses"],
             "final_phase": report["final_phase"], "final_reason": report["final_reason"],
             "exit_error_m": report["exit_error_m"], "wall_s": round(wall_s, 1),
             # A map built at the wrong scale fails the mission for reasons far from the scale.

@@ -34,10 +34,22 @@ def tracking_losses(slam_states):
                if state == LOST and before != LOST)
 
 
-def evaluate(world, final_phase, true_track, exit_truth_xy):
-    """The report's judgement: success needs the conductor done AND the robot truly outside."""
+def mission_end_s(phases):
+    """When the mission ended: the time (s) of the first of the last (time_s, phase) pairs in
+    done or gave_up; None when the last phase is neither (still running at the time limit)."""
+    end = None
+    for time_s, phase in reversed(list(phases)):
+        if phase not in ("done", "gave_up"):
+            break
+        end = time_s
+    return end
+
+
+def evaluate(world, final_phase, true_track, exit_truth_xy, in_time=True):
+    """The report's judgement: success needs the conductor done within the time limit AND the
+    robot truly outside."""
     outside = bool(len(true_track)) and left_the_room(world, true_track[-1])
-    return {"success": final_phase == "done" and outside,
+    return {"success": final_phase == "done" and outside and in_time,
             "left_the_room": outside,
             "path_length_m": round(path_length_m(true_track), 3),
             "exit_error_m": (None if exit_truth_xy is None

@@ -4,7 +4,8 @@ import pytest
 
 from sparse_nav.mission_report import (LookArounds, MapAlignments, PairedTruthScale, evaluate,
                                        exit_error_m, left_the_room, path_length_m,
-                                       planar_alignment, tally_look_arounds, tracking_losses)
+                                       mission_end_s, planar_alignment, tally_look_arounds,
+                                       tracking_losses)
 from sparse_nav.sim.world import load_world
 from sparse_nav.slam_bridge import LOST, NEW_MAP, OK
 from sparse_nav.transforms import make_transform, planar, quaternion_to_matrix
@@ -96,3 +97,14 @@ def test_a_loss_counts_once_however_often_lost_is_said():
     # LOST, then LOST again once SLAM gives up its map, then a new map: one loss.
     assert tracking_losses([OK, LOST, LOST, NEW_MAP, OK, LOST, OK]) == 2
     assert tracking_losses([LOST]) == 1 and tracking_losses([]) == 0
+
+
+def test_a_mission_ends_when_it_first_reaches_done_and_only_counts_within_the_time_limit():
+    world = load_world("one_room")
+    outside = [(3.0, 2.5), (5.5, 5.0), (5.5, 6.6)]
+    phases = [(1.0, "initial_scan"), (590.0, "look_around"), (601.5, "done"), (603.0, "done")]
+    assert mission_end_s(phases) == 601.5
+    assert mission_end_s(phases[:2]) is None, "still running at the limit"
+    assert mission_end_s([]) is None
+    assert not evaluate(world, "done", outside, None, in_time=False)["success"]
+    assert evaluate(world, "done", outside, None)["success"]

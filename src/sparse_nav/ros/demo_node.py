@@ -23,7 +23,7 @@ from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
 from sparse_nav.mission_report import (LookArounds, MapAlignments, PairedTruthScale, evaluate,
-                                       tracking_losses)
+                                       mission_end_s, tracking_losses)
 from sparse_nav.msg import ConductorState, ExitCandidates, FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
 from sparse_nav.ros.conversions import cloud_to_points, pose_to_matrix, transform_to_matrix
@@ -315,7 +315,12 @@ class DemoNode:
             conductor_states = list(self.conductor_states)
             look_arounds = list(self.look_arounds.records)
         final_phase = conductor_states[-1].phase if conductor_states else "no conductor state"
-        judgement = evaluate(world, final_phase, self.true_path, found_exit)
+        # The report is written seconds after the limit (the drone lands, the last messages
+        # arrive): a mission that ends in those seconds ran out of time.
+        ended_at_s = mission_end_s((c.header.stamp.to_sec(), c.phase) for c in conductor_states)
+        judgement = evaluate(world, final_phase, self.true_path, found_exit,
+                             in_time=ended_at_s is not None
+                             and ended_at_s <= self.sim_time_limit_s)
         visited = []
         for c in conductor_states:
             if not visited or visited[-1] != [c.state, c.phase]:
@@ -328,6 +333,8 @@ class DemoNode:
             "world": world.name,
             "robot": self.robot,
             "sim_time_s": round(rospy.Time.now().to_sec(), 2),
+            "ended_at_s": None if ended_at_s is None else round(ended_at_s, 2),
+            "sim_time_limit_s": self.sim_time_limit_s,
             "final_phase": final_phase,
             "final_reason": conductor_states[-1].reason if conductor_states else "",
             "left_the_room": judgement["left_the_room"],

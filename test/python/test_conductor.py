@@ -863,7 +863,7 @@ def test_a_scan_whose_slam_gave_up_its_map_relocalises_at_once():
     m2.tick(scan_running=True)
     actions = m2.tick(tracking_lost=True, slam_tracked_points=250, slam_map_given_up=True)
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.STOP, None),
-                                                              (ActionKind.SCAN, "relocalise")]
+                                                      (ActionKind.SCAN, "relocalise")]
     assert m2.conductor.reason == ("SLAM tracking lost (250 map points tracked at it), and SLAM "
                                    "gave up its map: stopped, relocalising")
 

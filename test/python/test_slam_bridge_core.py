@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from sparse_nav.slam_bridge import (LOST, NOT_INITIALIZED, OK, ORB_LOST, ORB_NOT_INITIALIZED,
-                                    ORB_OK, ORB_RECENTLY_LOST, BridgeConfig, DroneMoveScale, MapAnchors, MapClouds,
-                                    MapScales, ScaleEstimator, StateTracker,
-                                    odometry_camera_position)
+                                    ORB_OK, ORB_RECENTLY_LOST, BridgeConfig, DroneMoveScale,
+                                    MapAnchors, MapClouds, MapScales, ScaleEstimator,
+                                    StateTracker, odometry_camera_position)
 from sparse_nav.transforms import invert, make_transform, planar, yaw_of
 
 # A forward-looking camera 0.5 m up: optical z = base x, optical x = -base y, optical y = -base z.

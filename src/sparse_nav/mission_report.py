@@ -45,10 +45,11 @@ def mission_end_s(phases):
     return end
 
 
-def evaluate(world, final_phase, true_track, exit_truth_xy, in_time=True):
-    """The report's judgement: success needs the conductor done within the time limit AND the
-    robot truly outside."""
+def evaluate(world, final_phase, true_track, exit_truth_xy, ended_at_s=None, time_limit_s=None):
+    """The report's judgement: success needs the conductor done (at ended_at_s, see
+    mission_end_s) within time_limit_s, when one is given, AND the robot truly outside."""
     outside = bool(len(true_track)) and left_the_room(world, true_track[-1])
+    in_time = time_limit_s is None or (ended_at_s is not None and ended_at_s <= time_limit_s)
     return {"success": final_phase == "done" and outside and in_time,
             "left_the_room": outside,
             "path_length_m": round(path_length_m(true_track), 3),

@@ -106,5 +106,7 @@ def test_a_mission_ends_when_it_first_reaches_done_and_only_counts_within_the_ti
     assert mission_end_s(phases) == 601.5
     assert mission_end_s(phases[:2]) is None, "still running at the limit"
     assert mission_end_s([]) is None
-    assert not evaluate(world, "done", outside, None, in_time=False)["success"]
-    assert evaluate(world, "done", outside, None)["success"]
+    assert not evaluate(world, "done", outside, None, 601.5, 600.0)["success"]
+    assert evaluate(world, "done", outside, None, 600.0, 600.0)["success"]
+    assert not evaluate(world, "done", outside, None, None, 600.0)["success"], "never done"
+    assert evaluate(world, "done", outside, None)["success"], "no limit given"

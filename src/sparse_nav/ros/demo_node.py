@@ -318,9 +318,8 @@ class DemoNode:
         # The report is written seconds after the limit (the drone lands, the last messages
         # arrive): a mission that ends in those seconds ran out of time.
         ended_at_s = mission_end_s((c.header.stamp.to_sec(), c.phase) for c in conductor_states)
-        judgement = evaluate(world, final_phase, self.true_path, found_exit,
-                             in_time=ended_at_s is not None
-                             and ended_at_s <= self.sim_time_limit_s)
+        judgement = evaluate(world, final_phase, self.true_path, found_exit, ended_at_s,
+                             self.sim_time_limit_s)
         visited = []
         for c in conductor_states:
             if not visited or visited[-1] != [c.state, c.phase]:

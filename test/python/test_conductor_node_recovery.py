@@ -1,6 +1,6 @@
 """The conductor node's scan thread against a stand-in executor (no ROS master): the recovery
 motion moves a robot the map puts inside an obstacle out of it, and a ground robot's scan cut off
-for relocalising goes on from where it was cut.
+for relocalising goes on from where its cut step began.
 
 The recovery motion once handed the scan thread a bare list of steps where it expects a
 ScanRunner; the thread died at once, the robot never moved, and the conductor asked again every
@@ -21,7 +21,7 @@ from sparse_nav.scanning import Step, pose_after  # noqa: E402
 
 class RecordingExecutor:
     """Records the steps and moves the odometry pose by each (None: the robot has none);
-    cut_at: the step, by count, halfway through which the scan is stopped (relocalising)."""
+    cut_at: the step, by count, during which the scan is stopped (relocalising)."""
 
     def __init__(self, node, cut_at=None):
         self.node, self.cut_at = node, cut_at
@@ -31,9 +31,6 @@ class RecordingExecutor:
         self.steps.append(step)
         self.poses.append(self.node.odom_pose)
         if len(self.steps) == self.cut_at:
-            if self.node.odom_pose is not None:
-                half = Step(step.forward_m / 2, step.left_m / 2, step.ccw_deg / 2)
-                self.node.odom_pose = pose_after(self.node.odom_pose, [half])
             self.node.scan_stop.set()
             return False
         if self.node.odom_pose is not None:
@@ -84,10 +81,10 @@ def test_without_a_free_cell_nearby_it_still_moves_aside_and_back():
     assert [(s.forward_m, s.ccw_deg) for s in node.executor.steps] == [(0.2, 30.0), (-0.2, 0.0)]
 
 
-def test_a_ground_scan_cut_off_goes_on_from_where_it_was_cut():
+def test_a_ground_scan_cut_off_goes_on_from_where_its_cut_step_began():
     node = node_with(None)
     node.odom_pose = (0.0, 0.0, 0.0)
-    node.executor.cut_at = 2                  # stopped halfway through the turn, to relocalise
+    node.executor.cut_at = 2                  # stopped during the turn, to relocalise
     steps = [Step(forward_m=0.3), Step(ccw_deg=-60.0), Step(forward_m=0.3)]
     node._start_runner(ScanRunner(steps, node.runner_config))
     node.scan_thread.join(timeout=30.0)
@@ -96,11 +93,10 @@ def test_a_ground_scan_cut_off_goes_on_from_where_it_was_cut():
     node._start_scan("resume", None)
     node.scan_thread.join(timeout=30.0)
     assert not node.scan_thread.is_alive() and node.paused_scan is None
-    # Back to (0.3, 0, -30 deg), where the turn was cut, then its last 30 deg and the rest.
-    rest = node.executor.steps[-2:]
-    assert node.executor.poses[-2] == pytest.approx((0.3, 0.0, math.radians(-30)), abs=1e-9)
-    assert rest[0].ccw_deg == pytest.approx(-30.0) and rest[1] == steps[2]
-    assert not any(s.ccw_deg == -60.0 for s in node.executor.steps[2:]), "the turn not redone"
+    redone = node.executor.steps.index(steps[1], 2)
+    # Back to (0.3, 0, 0), where the cut turn began, then the turn and the rest of the scan.
+    assert node.executor.poses[redone] == pytest.approx((0.3, 0.0, 0.0), abs=1e-9)
+    assert node.executor.steps[redone:] == steps[1:]
     assert node.odom_pose == pytest.approx((0.3 + 0.3 * math.cos(math.radians(-60)),
                                             0.3 * math.sin(math.radians(-60)),
                                             math.radians(-60)), abs=1e-9)

@@ -1322,56 +1322,6 @@ def test_a_cut_scan_returns_to_where_its_cut_step_began():
         ScanRunner([a], ScanRunnerConfig(resume_return_max_m=float("nan")))
 
 
-def test_a_step_cut_with_odometry_goes_on_with_its_rest_from_where_it_was_cut():
-    a, turn, b = Step(forward_m=0.3), Step(ccw_deg=-90.0), Step(left_m=0.3, ccw_deg=-20.0)
-    runner = ScanRunner([a, turn, b])
-    runner.next_step((0.0, 0.0, 0.0))
-    runner.report(True)
-    runner.next_step((0.3, 0.0, 0.0))
-    runner.interrupt((0.3, 0.0, math.radians(-60.0)))      # cut 60 deg into the 90-deg turn
-    # relocalising drove it 0.5 m on: back to the cut, then the last 30 deg, not all 90 again
-    moved = (0.3 + 0.5 * math.cos(math.radians(-60.0)), 0.5 * math.sin(math.radians(-60.0)),
-             math.radians(-60.0))
-    assert runner.return_steps(moved) == [Step(forward_m=pytest.approx(-0.5))]
-    step, speed = runner.next_step((0.3, 0.0, math.radians(-60.0)))
-    assert step == Step(ccw_deg=pytest.approx(-30.0)) and speed == 1.0
-    runner.report(True)
-    cut = pose_after((0.3, 0.0, -math.pi / 2), [Step(left_m=0.1)])   # a third of the way
-    runner.next_step((0.3, 0.0, -math.pi / 2))
-    runner.interrupt(cut)
-    rest = []
-    while (item := runner.next_step()) is not None:
-        rest.append(item[0])
-        runner.report(True)
-    end = pose_after((0.3, 0.0, -math.pi / 2), [b])
-    assert pose_after(cut, rest) == pytest.approx(end)
-    assert runner.succeeded[:2] == [a, Step(ccw_deg=pytest.approx(-30.0))]
-    at_the_end = ScanRunner([turn])
-    at_the_end.next_step((0.0, 0.0, 0.0))
-    at_the_end.interrupt((0.0, 0.0, -math.pi / 2))           # cut just as it ended
-    assert at_the_end.done and at_the_end.succeeded == [turn]
-    again = ScanRunner([a, turn], ScanRunnerConfig(resume_at_cut=False))
-    again.next_step((0.0, 0.0, 0.0))
-    again.interrupt((0.2, 0.0, 0.0))
-    assert again.return_steps((0.2, 0.0, 0.0)) == [Step(forward_m=pytest.approx(-0.2))]
-    assert again.next_step() == (a, 1.0)                       # from its start, as without odometry
-
-
-def test_a_skip_after_cuts_mid_step_goes_on_to_the_end_of_the_scans_turn():
-    a, b, turn, c = Step(forward_m=0.3), Step(left_m=0.3), Step(ccw_deg=-60.0), Step(forward_m=0.2)
-    runner = ScanRunner([a, b, turn, c])
-    runner.next_step((0.0, 0.0, 0.0))
-    runner.report(True)
-    runner.next_step((0.3, 0.0, 0.0))
-    cut = (0.3, 0.0, math.pi / 4)          # b's way: turn left, drive, turn back; cut in its turn
-    runner.interrupt(cut)                  # its rest, in pieces, ends in a turn that is not the scan's
-    runner.next_step(cut)
-    runner.interrupt(cut)                  # cut again there: on past the scan's turn
-    assert runner.skipped[-1] == turn
-    assert runner.return_steps(pose_after((0.3, 0.0, 0.0), [b, turn])) == []
-    assert runner.next_step() == (c, 1.0)
-
-
 def test_a_scan_cut_twice_at_one_place_skips_to_the_end_of_its_turn():
     a, turn, b, last = (Step(forward_m=0.3), Step(ccw_deg=-60.0), Step(left_m=0.3),
                         Step(ccw_deg=-60.0))

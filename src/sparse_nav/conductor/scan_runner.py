@@ -5,9 +5,9 @@ undone and executed again, slower. After ``max_soft_fails`` soft fails in a row 
 undoes the last step that succeeded, so the robot goes back to where tracking last worked. After
 ``max_total_fails`` soft fails the scan has failed.
 
-A scan cut off (stopped for relocalising) goes on from where it was cut, with the rest of the cut
-step, when the robot has odometry to find that place again (see ``interrupt`` and
-``return_steps``); cut off again and again at one place, it skips to the end of that place's turn.
+A scan cut off (stopped for relocalising) goes on from where its cut step began, when the robot
+has odometry to find that place again (see ``return_steps``); cut off again and again at one place,
+it skips to the end of that place's turn (see ``interrupt``).
 """
 import collections
 import dataclasses
@@ -23,10 +23,8 @@ class ScanRunnerConfig:
     min_speed_factor: float = 0.25
     max_soft_fails: int = 2       # in a row, before the last success is undone too
     max_total_fails: int = 8      # over the whole scan, before it is given up
-    resume_return_max_m: float = 2.0  # a scan cut off goes back this far at most (m) to where it
-    #                                   goes on; 0: goes on where it is
-    resume_at_cut: bool = True    # with odometry, a cut step goes on from where it was cut (the
-    #                               rest of it); False: it is done again from its start
+    resume_return_max_m: float = 2.0  # a scan cut off goes back this far at most (m) to where its
+    #                                   cut step began before going on; 0: goes on where it is
     cuts_before_skip: int = 2     # a scan cut off this often at one place skips to the end of
     #                               the turn that place belongs to; 0: never
 
@@ -54,7 +52,6 @@ class ScanRunner:
         self.config.validate()
         self.while_lost = while_lost
         # (step, speed factor, its place in the scan: None for a step that undoes another)
-        self._plan = list(steps)
         self._todo: List[Tuple[Step, float, Optional[int]]] = [
             (s, 1.0, k) for k, s in reversed(list(enumerate(steps)))]
         self._current: Optional[Tuple[Step, float, Optional[int]]] = None
@@ -85,13 +82,10 @@ class ScanRunner:
         self.step_start_pose, self._resume_pose = pose, None
         return self._current[0], self._current[1]
 
-    def interrupt(self, pose=None):
-        """The step in progress was cut off (the scan stopped for relocalising), at pose (as in
-        next_step; None without odometry). With both that pose and the step's start known, the
-        scan goes on from the cut with the rest of the step (the way from there to where the
-        step ends); otherwise next_step() hands the step out again, to be done from its start,
-        and without return_steps a turn cut halfway turns a little more than planned. Redone
-        from its start, each loss in a scan cost a turn of up to 90 deg back and again.
+    def interrupt(self):
+        """The step in progress was cut off (the scan stopped for relocalising): the next
+        next_step() hands it out again, to be done from its start, and the scan goes on from
+        there. Without return_steps, a turn cut halfway turns a little more than planned.
 
         Cut off cuts_before_skip times at one place in the scan, the scan skips to the end of
         the turn that place belongs to: a view that loses tracking every time (a nearly blank
@@ -99,47 +93,33 @@ class ScanRunner:
         conductor's max_scan_resumes, and the robot is no wiser at the end."""
         if self._current is None:
             return
-        step, speed, place = self._current
+        self._todo.append(self._current)
         self._current = None
-        start = self.step_start_pose
-        if self.config.resume_at_cut and pose is not None and start is not None:
-            rest = steps_to_pose(pose, pose_after(start, [step]))
-            if not rest and place is not None:
-                self.succeeded.append(step)
-                self._succeeded_at.append(place)
-            self._todo.extend((s, speed, place) for s in reversed(rest))
-            self._resume_pose = pose
-        else:
-            self._todo.append((step, speed, place))
-            self._resume_pose = start
+        self._resume_pose = self.step_start_pose
         place = next((k for _, _, k in reversed(self._todo) if k is not None), None)
         self._cuts[place] += 1
         if self.config.cuts_before_skip and self._cuts[place] >= self.config.cuts_before_skip:
             self._skip_turn()
 
     def _skip_turn(self):
-        """Drops the steps to do up to the end of the next turn of the scan (its last piece,
-        when a cut left its rest in pieces), and moves the place to go on from to where they
-        would have ended."""
+        """Drops the steps to do up to the end of the next turn of the scan, and moves the
+        place to go on from to where they would have ended."""
         passed = []
         while self._todo:
             step, _, place = self._todo.pop()
             passed.append(step)
             if place is not None:
                 self.skipped.append(step)
-                planned = self._plan[place]
-                more_of_it = bool(self._todo) and self._todo[-1][2] == place
-                if (planned.ccw_deg and not planned.forward_m and not planned.left_m
-                        and not more_of_it):
+                if step.ccw_deg and not step.forward_m and not step.left_m:
                     break
         self.soft_fails = 0
         if self._resume_pose is not None:
             self._resume_pose = pose_after(self._resume_pose, passed)
 
     def return_steps(self, pose):
-        """Steps from pose (as in next_step) to where the scan cut off goes on (where it was cut,
-        where its cut step began, or where the turn it skipped ends), before it goes on: [] when
-        either place is unknown or they lie farther apart than resume_return_max_m.
+        """Steps from pose (as in next_step) to where the scan cut off goes on (where its cut
+        step began, or where the turn it skipped ends), before it goes on: [] when either place
+        is unknown or they lie farther apart than resume_return_max_m.
 
         Without them a robot that loses tracking again and again in a scan walks off: each cut
         step is redone from wherever the relocalising motion left it (a relocalising drive is

@@ -293,7 +293,7 @@ class ConductorNode:
                 self._drive(back)
             if self.scan_stop.is_set():
                 skipped = len(runner.skipped)
-                runner.interrupt(odom_pose())
+                runner.interrupt()
                 if len(runner.skipped) > skipped:
                     rospy.loginfo("conductor: the scan was cut off at one place %d times: it "
                                   "skips %d steps, to the end of that place's turn",

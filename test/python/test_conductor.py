@@ -623,8 +623,30 @@ def test_no_map_to_look_around_in_is_done_after_the_exit():
     assert m.conductor.phase == Phase.DONE and "no map to look around in" in m.conductor.reason
 
 
+def test_tracking_not_back_in_a_relocalising_try_looking_around_is_out_wherever_it_was_lost():
+    m = looking_around()  # at (6.5, 0), 0.5 m outside ROOM: within left_room_margin_m
+    m.tick(robot_xy=(5.5, 0.0), walls_around=WALLS_ROOM)  # even back inside the outline
+    m.tick(tracking_lost=True, walls_around=())
+    m.tick(dt=12.0)
+    assert (m.conductor.state, m.conductor.phase) == (State.LOST, Phase.LOOK_AROUND)
+    assert kinds(m.tick(dt=0.5)) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "passed through the exit: tracking lost looking around and not back in 12 s "
+                    "of relocalising: too little around to track, out")
+    m = looking_around()
+    m.tick(walls_around=WALLS_ROOM)
+    m.tick(tracking_lost=True, walls_around=())
+    m.tick(dt=8.0, tracking_lost=False)  # back within a try: a room has walls to track
+    m.tick(dt=8.0, tracking_lost=True)
+    m.tick(dt=8.0)
+    assert m.conductor.phase == Phase.LOOK_AROUND
+    with pytest.raises(ValueError):
+        ConductorConfig(look_lost_out_s=0.0).validate()
+
+
 def test_tracking_lost_looking_around_outside_the_outline_is_done_else_the_last_look_decides():
-    m = looking_around()  # at (6.5, 0), 0.5 m outside ROOM
+    # Only with look_lost_out_s over left_room_wait_s does the outline's margin decide here.
+    m = looking_around(ConductorConfig(wall_scan_enabled=False, look_lost_out_s=100.0))
     m.tick(robot_xy=(7.5, 0.0), walls_around=WALLS_ROOM)
     m.tick(tracking_lost=True, walls_around=())
     assert kinds(m.tick(dt=20.0)) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
@@ -762,7 +784,8 @@ def test_sudden_losses_looking_around_do_not_narrow_the_opening_taken_for_out():
 
 
 def test_tracking_lost_past_the_exit_and_never_back_is_done_inside_the_outline_gave_up():
-    m = looking_around()  # at (6.5, 0), 0.5 m outside ROOM: within left_room_margin_m
+    config = ConductorConfig(wall_scan_enabled=False, look_lost_out_s=100.0)
+    m = looking_around(config)  # at (6.5, 0), 0.5 m outside ROOM: within left_room_margin_m
     m.tick(walls_around=WALLS_ROOM)
     m.tick(tracking_lost=True, walls_around=())
     assert m.conductor.state == State.LOST
@@ -770,7 +793,7 @@ def test_tracking_lost_past_the_exit_and_never_back_is_done_inside_the_outline_g
     assert (m.conductor.phase, m.conductor.reason) == (
         Phase.DONE, "left the room: tracking lost 0.50 m outside its outline and not back in "
                     "60 s of relocalising")
-    m = looking_around()
+    m = looking_around(config)
     m.tick(robot_xy=(4.5, 0.0), walls_around=WALLS_ROOM)  # back inside the outline
     m.tick(tracking_lost=True, walls_around=())
     m.tick(dt=m.conductor.config.lost_timeout_s + 1.0, tracking_lost=True)

@@ -143,6 +143,9 @@ class ConductorConfig:
     reached_tolerance_m: float = 0.4     # the navigator's "reached" or this close counts
     left_room_margin_m: float = 1.0      # lost this far outside the outline passing through,
     left_room_wait_s: float = 20.0       # ... and not back within this: out (back: another room?)
+    look_lost_out_s: float = 12.0        # looking around, tracking lost this long (more than a
+                                         # relocalising try, wherever the robot is): out. A room
+                                         # has walls to start a new map on at the first try
     inside_room_margin_m: float = 0.5    # passed through yet this far inside the outline: the
     rejected_exit_radius_m: float = 1.0  # ... exit was wrong; later candidates this close to it
                                          # are skipped
@@ -205,7 +208,8 @@ class ConductorConfig:
                      "back_out_door_radius_m",
                      "stall_timeout_s", "stall_progress_m", "exit_near_m",
                      "walls_around_range_m", "room_side_walls_min_m", "merge_wait_s",
-                     "map_settle_s", "left_room_wait_s", "scan_retry_lost_s"):
+                     "map_settle_s", "left_room_wait_s", "scan_retry_lost_s",
+                     "look_lost_out_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -435,13 +439,22 @@ class Conductor:
         never seen. Tracking that comes back there is a room with walls to track (beyond a
         partition's door), whose look around decides. Without a loss the pass-through goal
         and the look around decide, because the outline covers only what the scan saw (an
-        L-shaped room's far arm lies outside it)."""
+        L-shaped room's far arm lies outside it).
+
+        Looking around, a loss not relocalised within look_lost_out_s (more than the first
+        relocalising try) is out wherever the robot was last tracked: a room has walls to start
+        a new map on (config/conductor.yaml gives the runs that set it)."""
         cfg = self.config
         if not obs.tracking_lost or self.state != State.LOST:
             return None
+        lost_s = t - self._lost_since_s
+        if self.phase == Phase.LOOK_AROUND and lost_s > cfg.look_lost_out_s:
+            self._set(t, State.IDLE, Phase.DONE,
+                      f"passed through the exit: tracking lost looking around and not back in "
+                      f"{cfg.look_lost_out_s:g} s of relocalising: too little around to track, out")
+            return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         outside = self._lost_outside_by()
-        if outside is None or outside < cfg.left_room_margin_m \
-                or t - self._lost_since_s < cfg.left_room_wait_s:
+        if outside is None or outside < cfg.left_room_margin_m or lost_s < cfg.left_room_wait_s:
             return None
         return self._out(t, outside, f" and not back in {cfg.left_room_wait_s:g} s")
 

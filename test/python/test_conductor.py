@@ -39,9 +39,12 @@ class Mission:
         self.obs.exit_answered = False
         return actions
 
-    def run_scan(self, map_ready=True, failed=False):
+    def run_scan(self, map_ready=True, failed=False, share_done=None):
         self.tick(scan_running=True)
-        return self.tick(scan_running=False, map_ready=map_ready, scan_failed=failed)
+        if share_done is None:
+            share_done = 0.5 if failed else 1.0
+        return self.tick(scan_running=False, map_ready=map_ready, scan_failed=failed,
+                         scan_share_done=share_done)
 
 
 def test_the_whole_mission_in_order():
@@ -95,9 +98,32 @@ def test_failed_scans_with_a_map_at_hand_look_for_the_exit_in_it_after_the_last_
     m.tick(start_requested=True)
     actions = m.run_scan(map_ready=True, failed=True)
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
-    assert m.conductor.reason == "scan failed: scan again (2/2)"
+    assert m.conductor.reason == "scan failed 50% through: scan again (2/2)"
     assert kinds(m.run_scan(map_ready=True, failed=True)) == [ActionKind.FIND_EXIT]
     assert m.conductor.reason == "the last of 2 scans failed: find the exit in the map there is"
+
+
+@pytest.mark.parametrize("wall_scan", [False, True])
+def test_an_initial_scan_failed_late_counts_as_done_one_failed_early_is_scanned_again(wall_scan):
+    config = ConductorConfig(wall_scan_enabled=wall_scan, failed_scan_min_share_done=0.75)
+    late = Mission(config)
+    late.tick(start_requested=True)
+    actions = late.run_scan(map_ready=True, failed=True, share_done=0.8)
+    assert kinds(actions) == [ActionKind.SCAN if wall_scan else ActionKind.FIND_EXIT]
+    assert late.conductor.reason.startswith("initial scan failed 80% through, most of the room "
+                                            "seen: ")
+    early = Mission(config)
+    early.tick(start_requested=True)
+    actions = early.run_scan(map_ready=True, failed=True, share_done=0.7)
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "random")]
+    assert early.conductor.reason == "scan failed 70% through: scan again (2/3)"
+    no_map = Mission(config)  # late, but nothing navigable to look for the exit in
+    no_map.tick(start_requested=True)
+    no_map.run_scan(map_ready=False, failed=True, share_done=0.9)
+    assert no_map.conductor.phase == Phase.INITIAL_SCAN
+    for bad in (-0.1, 1.5, math.nan):
+        with pytest.raises(ValueError):
+            ConductorConfig(failed_scan_min_share_done=bad).validate()
 
 
 def test_a_new_slam_map_during_the_initial_scan_scans_again_a_merge_back_does_not():
@@ -1388,6 +1414,21 @@ def test_too_many_soft_fails_fail_the_scan():
     runner = ScanRunner([Step(forward_m=0.3)], ScanRunnerConfig(max_total_fails=3))
     run(runner, [False, True, False, True, False])
     assert runner.failed and runner.done and runner.next_step() is None
+    assert runner.share_done == 0.0
+
+
+def test_share_done_counts_each_step_that_succeeded_once_undone_and_redone_or_not():
+    a, b, c, d = (Step(forward_m=0.3), Step(ccw_deg=30.0), Step(ccw_deg=-30.0),
+                  Step(forward_m=-0.3))
+    runner = ScanRunner([a, b, c, d], ScanRunnerConfig(max_soft_fails=1, max_total_fails=2))
+    assert runner.share_done == 0.0
+    # a, b succeed; c fails: c and b undone (b no longer counts), b redone, c fails again.
+    run(runner, [True, True, False, True, True, True, False])
+    assert runner.failed and runner.share_done == 0.5
+    undone = ScanRunner([a, b, c, d], ScanRunnerConfig(max_soft_fails=1, max_total_fails=2))
+    run(undone, [True, True, False, True, True, False])  # b fails where it was redone
+    assert undone.failed and undone.share_done == 0.25
+    assert ScanRunner([]).share_done == 1.0
 
 
 def test_a_lost_pose_is_a_soft_fail_except_in_the_relocalising_motion():

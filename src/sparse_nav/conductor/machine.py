@@ -93,6 +93,7 @@ class Observation:
     robot_in_obstacle: bool = False
     scan_running: bool = False
     scan_failed: bool = False            # the last scan ended with too many soft fails
+    scan_share_done: float = 0.0         # ... after this share of its steps succeeded
     scan_resumable: bool = False         # a stopped phase scan has steps left to go on with
     exit_xy: Optional[Tuple[float, float]] = None  # the newest answer of the exit finder
     exit_alternatives: Tuple = ()        # its further candidates, best first
@@ -126,6 +127,10 @@ class ConductorConfig:
     scan_map_min_share: float = 0.5      # a scan's SLAM map at its end must have tracked this
                                          # share of its time (merges count): else a new map
                                          # holds too little of the room, and it is scanned again
+    failed_scan_min_share_done: float = 0.75  # an initial scan failed (too many soft fails)
+                                         # after this share of its steps succeeded counts as
+                                         # done: the map holds most of the room, and a new
+                                         # round would take minutes to see it again
     max_scan_resumes: int = 15           # a phase scan cut by losses goes on where it was cut
                                          # this often; then the phase's rules judge it as cut
     max_exit_attempts: int = 3           # exit finder answers without an exit before giving up
@@ -215,6 +220,9 @@ class ConductorConfig:
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
         if not 0 <= self.exit_check_near_m < self.exit_check_far_m < math.inf:
             raise ValueError("need 0 <= exit_check_near_m < exit_check_far_m (finite)")
+        if not 0 <= self.failed_scan_min_share_done <= 1:
+            raise ValueError(f"failed_scan_min_share_done must be in [0, 1], got "
+                             f"{self.failed_scan_min_share_done}")
         if not 0 <= self.scan_map_min_share <= 1:
             raise ValueError(f"scan_map_min_share must be in [0, 1], got "
                              f"{self.scan_map_min_share}")
@@ -686,11 +694,14 @@ class Conductor:
             rounds_left = self._scan_rounds < cfg.max_scan_rounds
             map_changed = self._scan_map_share(obs) < cfg.scan_map_min_share and rounds_left
             cut = cut and rounds_left
-            if obs.map_ready and not obs.scan_failed and not map_changed and not cut:
+            failed = obs.scan_failed and obs.scan_share_done < cfg.failed_scan_min_share_done
+            if obs.map_ready and not failed and not map_changed and not cut:
+                done = (f"initial scan failed {obs.scan_share_done:.0%} through, most of the "
+                        f"room seen" if obs.scan_failed else "initial scan done")
                 if cfg.wall_scan_enabled:
-                    self._set(t, State.START, Phase.WALL_SCAN, "initial scan done: wall scan")
+                    self._set(t, State.START, Phase.WALL_SCAN, f"{done}: wall scan")
                     return [self._scan("wall")]
-                return self._ask_exit(t, "initial scan done: find the exit")
+                return self._ask_exit(t, f"{done}: find the exit")
             if obs.map_ready and not rounds_left:
                 # Scans that keep failing (tracking lost over and over) still leave a map: the
                 # exit is looked for in it rather than given up with a map at hand.
@@ -700,7 +711,7 @@ class Conductor:
             if self._scan_rounds >= cfg.max_scan_rounds:
                 return self._give_up(t, f"no navigable map after {self._scan_rounds} scans")
             self._scan_rounds += 1
-            why = ("scan failed" if obs.scan_failed else
+            why = (f"scan failed {obs.scan_share_done:.0%} through" if obs.scan_failed else
                    "the SLAM map changed during the scan" if map_changed else
                    "the scan ended while SLAM tracking was lost" if cut else "no navigable map yet")
             self._set(t, State.START, Phase.INITIAL_SCAN, f"{why}: scan again "

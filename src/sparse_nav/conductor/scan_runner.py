@@ -55,6 +55,7 @@ class ScanRunner:
         self._todo: List[Tuple[Step, float, Optional[int]]] = [
             (s, 1.0, k) for k, s in reversed(list(enumerate(steps)))]
         self._current: Optional[Tuple[Step, float, Optional[int]]] = None
+        self._places = len(steps)
         self.succeeded: List[Step] = []
         self._succeeded_at: List[int] = []
         self.skipped: List[Step] = []  # passed over where the view could not be tracked
@@ -64,6 +65,11 @@ class ScanRunner:
         self.failed = False
         self.step_start_pose = None  # where the step in progress began
         self._resume_pose = None     # where the scan cut off goes on from
+
+    @property
+    def share_done(self):
+        """Share of the scan's steps that succeeded so far (1 for a scan without steps)."""
+        return len(set(self._succeeded_at)) / self._places if self._places else 1.0
 
     @property
     def done(self):

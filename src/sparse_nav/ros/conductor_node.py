@@ -261,7 +261,7 @@ class ConductorNode:
             if not self.took_off:
                 rospy.logwarn("conductor: the drone did not take off (%s): the scan is not flown", why)
                 with self.lock:
-                    self.obs.scan_failed = True
+                    self.obs.scan_failed, self.obs.scan_share_done = True, 0.0
                 return
         # Only the ground robot's odometry holds still through SLAM losses: the drone's odom
         # frame is SLAM's own.
@@ -307,6 +307,7 @@ class ConductorNode:
                 runner.report_motion(done, self._tracking_lost())
         with self.lock:
             self.obs.scan_failed = runner.failed
+            self.obs.scan_share_done = runner.share_done
             if (resumable and self.scan_stop.is_set() and not runner.while_lost
                     and not runner.done):
                 self.paused_scan = runner

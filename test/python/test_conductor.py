@@ -1659,14 +1659,12 @@ def test_an_interrupted_step_is_done_again_when_the_scan_goes_on():
     assert runner.done
 
 
-@pytest.mark.parametrize("tracked", [25, 700])  # sudden losses count passing through
-def test_losing_tracking_again_and_again_passing_through_outside_the_outline_looks_around(
-        tracked):
+def test_losing_tracking_again_and_again_passing_through_outside_the_outline_looks_around():
     m = passing_through(ConductorConfig(wall_scan_enabled=False, max_goal_losses=3,
-                                        pass_through_m=3.0, sudden_loss_min_tracked_points=200))
-    actions = losing_tracking_on_the_way(m, (6.3, 0.0), 2, tracked)  # 0.3 m beyond the east wall
+                                        pass_through_m=3.0))
+    actions = losing_tracking_on_the_way(m, (6.3, 0.0), 2)   # 0.3 m beyond ROOM's east wall
     assert [(a.kind, a.payload) for a in actions][-1] == (ActionKind.GOAL, (8.0, 0.0))
-    actions = losing_tracking_on_the_way(m, (6.35, 0.0), 1, tracked)  # the third, no closer
+    actions = losing_tracking_on_the_way(m, (6.35, 0.0), 1)  # the third, no closer
     assert [(a.kind, a.payload) for a in actions][-2:] == [(ActionKind.CANCEL_GOAL, None),
                                                            (ActionKind.SCAN, "look_around")]
     assert m.conductor.phase == Phase.LOOK_AROUND and m.conductor.door_xy == (5.0, 0.0)

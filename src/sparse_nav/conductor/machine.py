@@ -140,7 +140,7 @@ class ConductorConfig:
                                          # exit, never stall_progress_m closer between losses:
                                          # a route the camera cannot track along; next exit
                                          # (passing through: the pass-through ends there).
-                                         # Sudden losses (below) count only passing through
+                                         # Sudden losses (below) do not count
     goal_failure_grace_s: float = 10.0   # a failure must last this long to count (replanning)
     pass_through_m: float = 1.5          # beyond the exit, away from the room
     exit_check_near_m: float = 0.3       # the map is asked about free space this far beyond an
@@ -652,16 +652,13 @@ class Conductor:
     def _count_goal_loss(self, tracked):
         """A loss on the way to an exit or through it counts when the robot came no closer since
         the last one (a forced or occasional loss on a route that makes progress does not).
-        On the way to an exit, a sudden loss (sudden_loss_min_tracked_points tracked at it)
-        neither counts nor breaks the run: the view held plenty to track, and the relocalising
-        and merge wait after it leave the robot seconds to drive before the next (forced losses
-        30 s apart made a ground robot drop a candidate, random:47 stressed). Passing through
-        they count: the look around that ends it decides as well from there, and without them
-        forced losses kept a robot passing through for minutes (random:43 stressed)."""
+        A sudden loss (sudden_loss_min_tracked_points tracked at it) neither counts nor breaks
+        the run: the view held plenty to track, and the relocalising and merge wait after it
+        leave the robot seconds to drive before the next (forced losses 30 s apart stopped a
+        ground robot three times short of a true exit, random:47 stressed)."""
         if self.state != State.GOAL or self.phase not in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH) \
                 or self._last_tracked_xy is None or self.goal_xy is None \
-                or (self.phase == Phase.GO_TO_EXIT
-                    and tracked >= self.config.sudden_loss_min_tracked_points):
+                or tracked >= self.config.sudden_loss_min_tracked_points:
             return
         distance = math.dist(self._last_tracked_xy, self.goal_xy)
         if self._loss_distance is not None \

@@ -139,8 +139,7 @@ class ConductorConfig:
     max_goal_losses: int = 3             # tracking lost this often in a row on the way to an
                                          # exit, never stall_progress_m closer between losses:
                                          # a route the camera cannot track along; next exit
-                                         # (passing through: the pass-through ends there).
-                                         # Sudden losses (below) do not count
+                                         # (passing through: the pass-through ends there)
     goal_failure_grace_s: float = 10.0   # a failure must last this long to count (replanning)
     pass_through_m: float = 1.5          # beyond the exit, away from the room
     exit_check_near_m: float = 0.3       # the map is asked about free space this far beyond an
@@ -486,8 +485,8 @@ class Conductor:
             if self.state != State.LOST:
                 if self.state != State.RECOVER:  # RECOVER resumes the state it interrupted
                     self._resume_state = self.state
+                self._count_goal_loss()
                 tracked = obs.slam_tracked_points or 0
-                self._count_goal_loss(tracked)
                 lost = f"SLAM tracking lost ({tracked} map points tracked at it)"
                 if self.phase == Phase.LOOK_AROUND:
                     if tracked >= cfg.sudden_loss_min_tracked_points:
@@ -649,16 +648,11 @@ class Conductor:
         return (self._wrong_exit_if_inside(t, obs, f"{why},")
                 or self._look_around(t, f"{why}: look around from here", self.exit_xy))
 
-    def _count_goal_loss(self, tracked):
+    def _count_goal_loss(self):
         """A loss on the way to an exit or through it counts when the robot came no closer since
-        the last one (a forced or occasional loss on a route that makes progress does not).
-        A sudden loss (sudden_loss_min_tracked_points tracked at it) neither counts nor breaks
-        the run: the view held plenty to track, and the relocalising and merge wait after it
-        leave the robot seconds to drive before the next (forced losses 30 s apart stopped a
-        ground robot three times short of a true exit, random:47 stressed)."""
+        the last one (a forced or occasional loss on a route that makes progress does not)."""
         if self.state != State.GOAL or self.phase not in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH) \
-                or self._last_tracked_xy is None or self.goal_xy is None \
-                or tracked >= self.config.sudden_loss_min_tracked_points:
+                or self._last_tracked_xy is None or self.goal_xy is None:
             return
         distance = math.dist(self._last_tracked_xy, self.goal_xy)
         if self._loss_distance is not None \

@@ -142,3 +142,10 @@ class MapAlignments:
     def get(self, map_index):
         """The alignment of map_index, else the newest of any map, else None."""
         return self._by_map.get(map_index, self._latest)
+
+    def biggest_aligned(self, sizes):
+        """Of {map index: point count}, the index of the biggest map with an alignment of its
+        own, or None: a run that ends in a map begun beyond the exit (tracking lost outside)
+        draws the room's map, not the few points seen since."""
+        aligned = [k for k in sizes if k in self._by_map]
+        return max(aligned, key=lambda k: sizes[k]) if aligned else None

@@ -93,6 +93,17 @@ def test_each_slam_map_keeps_its_own_alignment_and_a_switch_settles_first():
     assert alignments.get(0) is first  # merged back into map 0: its own alignment again
 
 
+def test_the_biggest_slam_map_with_its_own_alignment_is_the_one_drawn():
+    alignments = MapAlignments(settle_s=0.0)
+    assert alignments.biggest_aligned({0: 5000}) is None
+    alignments.add(0.0, True, 0, planar(2.0, 1.0, 0.0, 0.5), planar(0.0, 0.0, 0.0, 0.0))
+    alignments.add(1.0, True, 1, planar(2.0, 1.0, 0.0, 0.5), planar(1.0, 0.0, 0.0, 0.5))
+    assert alignments.biggest_aligned({0: 5000, 1: 218}) == 0  # the room's, not outside's
+    assert alignments.biggest_aligned({0: 100, 1: 218}) == 1
+    assert alignments.biggest_aligned({2: 9000, 1: 218}) == 1  # map 2 never aligned
+    assert alignments.biggest_aligned({}) is None
+
+
 def test_a_loss_counts_once_however_often_lost_is_said():
     # LOST, then LOST again once SLAM gives up its map, then a new map: one loss.
     assert tracking_losses([OK, LOST, LOST, NEW_MAP, OK, LOST, OK]) == 2

@@ -77,6 +77,7 @@ class DemoNode:
         self.truth_scale = PairedTruthScale()
         self.t_truth_map = None  # the simulator's map -> sim_world, for the first SLAM map
         self.alignments = MapAlignments()
+        self.clouds = {}  # SLAM map index -> its newest slam/points
         self.truth_history = collections.deque(maxlen=200)  # ground_truth/odom, for alignment
         # Places in the map frame put in sim_world with the alignment of the moment they were
         # published: after a SLAM map switch the map frame's relation to the truth changes.
@@ -103,6 +104,8 @@ class DemoNode:
             self.latest[topic] = msg
             if topic == "tello/response":
                 self.responses.append(msg.data)
+            elif topic == "slam/points" and self.states:
+                self.clouds[self.states[-1].map_index] = msg
             elif topic == "slam/state":
                 self.states.append(msg)
                 self.truth_scale.on_tracking(msg.state in (SlamState.OK, SlamState.NEW_MAP))
@@ -283,6 +286,7 @@ class DemoNode:
             bag, self.bag = self.bag, None
             latest = dict(self.latest)
             states = list(self.states)
+            clouds = dict(self.clouds)
             true_scale = self.truth_scale.value  # of the same moment as latest's slam/scale
         bag.close()
         raw = latest.get("orb_slam3/all_points")
@@ -294,7 +298,12 @@ class DemoNode:
         t_truth_map = self._truth_from_map()
         if t_truth_map is None:
             rospy.logwarn("demo: no map -> sim_world alignment, map not drawn")
-        if "slam/points" in latest and t_truth_map is not None:
+        drawn = self.alignments.biggest_aligned({k: c.width * c.height for k, c in clouds.items()})
+        if drawn is not None:
+            map_points = cloud_to_points(clouds[drawn])
+            t_drawn = self.alignments.get(drawn)
+            map_points = map_points @ t_drawn[:3, :3].T + t_drawn[:3, 3]
+        elif "slam/points" in latest and t_truth_map is not None:
             map_points = cloud_to_points(latest["slam/points"])
             map_points = map_points @ t_truth_map[:3, :3].T + t_truth_map[:3, 3]
         grid = latest.get("map")

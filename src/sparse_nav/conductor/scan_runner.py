@@ -69,7 +69,7 @@ class ScanRunner:
     @property
     def share_done(self):
         """Share of the scan's steps that succeeded so far (1 for a scan without steps)."""
-        return len(set(self._succeeded_at)) / self._places if self._places else 1.0
+        return len(self._succeeded_at) / self._places if self._places else 1.0
 
     @property
     def done(self):

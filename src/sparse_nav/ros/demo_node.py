@@ -299,13 +299,10 @@ class DemoNode:
         if t_truth_map is None:
             rospy.logwarn("demo: no map -> sim_world alignment, map not drawn")
         drawn = self.alignments.biggest_aligned({k: c.width * c.height for k, c in clouds.items()})
-        if drawn is not None:
-            map_points = cloud_to_points(clouds[drawn])
-            t_drawn = self.alignments.get(drawn)
-            map_points = map_points @ t_drawn[:3, :3].T + t_drawn[:3, 3]
-        elif "slam/points" in latest and t_truth_map is not None:
-            map_points = cloud_to_points(latest["slam/points"])
-            map_points = map_points @ t_truth_map[:3, :3].T + t_truth_map[:3, 3]
+        cloud, t_cloud = ((clouds[drawn], self.alignments.get(drawn)) if drawn is not None
+                          else (latest.get("slam/points"), t_truth_map))
+        if cloud is not None and t_cloud is not None:
+            map_points = cloud_to_points(cloud) @ t_cloud[:3, :3].T + t_cloud[:3, 3]
         grid = latest.get("map")
         if grid is not None and t_truth_map is not None:
             plot_grid(os.path.join(self.output_dir, "map.png"), world, grid_to_array(grid),

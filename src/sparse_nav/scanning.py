@@ -16,10 +16,10 @@ import math
 GROUND_SPEED_M_S = 0.3
 GROUND_TURN_RATE_RAD_S = 1.3
 # The ground robot's initial scan turns 90 deg per iteration (the drone's, 30): a third of the sim
-# time (101 s instead of 290 s, at 1 rad/s), which losses every 30 s leave the mission short of, for the exit
-# found as often (bench_ground_scan.py: seeds 0-9 of one_room and 0-1 of random:1-10, 19 of 30
-# hits at 60 deg, 20 at 45 deg in 196 s, 20 at 30 deg; seed 0 of random:1-24, 16 of 24 at 60 deg
-# in 148 s, 17 at 90 deg; one_room seeds 0-9, 10 of 10 at 90 deg).
+# time (101 s instead of 290 s, at 1 rad/s), which losses every 30 s leave the mission short of,
+# for the exit found as often (bench_ground_scan.py: seeds 0-9 of one_room and 0-1 of
+# random:1-10, 19 of 30 hits at 60 deg, 20 at 45 deg in 196 s, 20 at 30 deg; seed 0 of
+# random:1-24, 16 of 24 at 60 deg in 148 s, 17 at 90 deg; one_room seeds 0-9, 10 of 10 at 90 deg).
 GROUND_INITIAL_SCAN_TURN_DEG = 90.0
 
 

@@ -158,6 +158,7 @@ class MapAnchors:
         self._accept_next = False
         self._reanchor_next = False
         self._clouds = MapClouds(config)
+        self._entered_s = None  # stamp of the pose that put the robot in the current map
 
     def tracking_lost(self):
         """The next pose may be in another map (a new one, or an earlier one after a merge)."""
@@ -182,8 +183,9 @@ class MapAnchors:
         self.set_scale(metres_per_unit)
         self._reanchor_next = self.current is not None
 
-    def update(self, t_slam_cam, metres_per_unit):
-        """Base pose in ``map`` for a camera pose in the SLAM frame; returns (T_map_base, event).
+    def update(self, t_slam_cam, metres_per_unit, stamp_s):
+        """Base pose in ``map`` for a camera pose in the SLAM frame, stamped stamp_s (s); returns
+        (T_map_base, event).
 
         event is None, "first" (the first map), "new_map", "switched" (back to an earlier map),
         "relocalised" (tracking resumed in the same map) or "reframed" (the pose jumped while
@@ -220,6 +222,8 @@ class MapAnchors:
                 if self.current is not left and not self._needs_check:
                     left.retired = True
                     self._clouds.merged_from = left.index
+        if self._needs_check or event in ("first", "new_map", "switched"):
+            self._entered_s = stamp_s
         self._needs_check = False
         self._new_map_expected = False
         self._accept_next = False
@@ -227,11 +231,19 @@ class MapAnchors:
         self.last_base = self.current.base_pose(t_slam_cam, self._t_cam_base)
         return self.last_base, event
 
+    def is_late(self, cloud_stamp_s):
+        """Whether a cloud stamped cloud_stamp_s (s) predates the pose that put the robot in the
+        current map: then it is the map before, delivered late (the bridge takes longer over a
+        cloud than over a pose), and would read as a merge back into that map, or into any small
+        map begun at the same place, and its points are not in the current map's frame."""
+        return self._entered_s is not None and cloud_stamp_s < self._entered_s
+
     def on_cloud(self, points):
-        """The active SLAM map's cloud (SLAM units) while tracking. Returns the index of the
-        earlier map whose points reappear in it (SLAM merged the current map into that one, and
-        the next pose is read through its anchor, whatever step that makes), else None. ``merge``
-        then tells whether this is the first cloud of a merge, found by this cloud or by the pose.
+        """The active SLAM map's cloud (SLAM units) while tracking, not late (``is_late``).
+        Returns the index of the earlier map whose points reappear in it (SLAM merged the current
+        map into that one, and the next pose is read through its anchor, whatever step that
+        makes), else None. ``merge`` then tells whether this is the first cloud of a merge, found
+        by this cloud or by the pose.
 
         The map left is retired, and so is the map the previous cloud belonged to: when the pose
         jumped at the merge, a new anchor may stand between them."""

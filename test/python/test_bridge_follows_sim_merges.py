@@ -34,7 +34,7 @@ def _tracked_frames(sim, anchors, metres_per_unit):
                 tracking = False
                 continue
             tracking = True
-            _, event = anchors.update(out.T_slam_camera, metres_per_unit())
+            _, event = anchors.update(out.T_slam_camera, metres_per_unit(), out.stamp_s)
             cloud_due = out.stamp_s >= next_cloud_s and len(out.all_points) > 0
             if cloud_due:
                 next_cloud_s = out.stamp_s + CLOUD_PERIOD_S

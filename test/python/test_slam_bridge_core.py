@@ -79,11 +79,11 @@ def test_first_map_puts_base_at_origin_and_follows_motion():
     anchors = MapAnchors(BridgeConfig(), MOUNT)
     origin = planar(2.0, 1.0, 0.0, 0.7)
     s = 3.0  # SLAM units per metre; the bridge is told 1/s metres per unit
-    base, event = anchors.update(camera_in_slam(origin, origin, s), 1.0 / s)
+    base, event = anchors.update(camera_in_slam(origin, origin, s), 1.0 / s, 1.0)
     assert event == "first"
     np.testing.assert_allclose(base, np.eye(4), atol=1e-9)
     moved = origin @ planar(1.0, 0.5, 0.0, 0.3)
-    base, event = anchors.update(camera_in_slam(origin, moved, s), 1.0 / s)
+    base, event = anchors.update(camera_in_slam(origin, moved, s), 1.0 / s, 2.0)
     assert event is None
     np.testing.assert_allclose(base[:3, 3], [1.0, 0.5, 0.0], atol=1e-9)
     assert yaw_of(base) == pytest.approx(0.3)
@@ -92,19 +92,19 @@ def test_first_map_puts_base_at_origin_and_follows_motion():
 def test_new_map_continues_from_last_pose_and_merge_returns_to_old_anchor():
     anchors = MapAnchors(BridgeConfig(), MOUNT)
     origin = planar(0.0, 0.0, 0.0, 0.0)
-    anchors.update(camera_in_slam(origin, origin, 2.0), 0.5)
+    anchors.update(camera_in_slam(origin, origin, 2.0), 0.5, 1.0)
     last = planar(1.0, 0.0, 0.0, 0.0)
-    anchors.update(camera_in_slam(origin, last, 2.0), 0.5)
+    anchors.update(camera_in_slam(origin, last, 2.0), 0.5, 2.0)
     anchors.tracking_lost()
     anchors.expect_new_map()
     # A new SLAM map starts where the robot is, with another scale.
     new_origin = planar(1.2, 0.1, 0.0, 0.1)
-    base, event = anchors.update(camera_in_slam(new_origin, new_origin, 5.0), 0.2)
+    base, event = anchors.update(camera_in_slam(new_origin, new_origin, 5.0), 0.2, 3.0)
     assert event == "new_map" and anchors.current.index == 1
     np.testing.assert_allclose(base[:3, 3], [1.0, 0.0, 0.0], atol=1e-9)
     # SLAM merges back: the pose jumps into the first map's frame and scale.
     back = planar(1.5, 0.2, 0.0, 0.2)
-    base, event = anchors.update(camera_in_slam(origin, back, 2.0), 0.5)
+    base, event = anchors.update(camera_in_slam(origin, back, 2.0), 0.5, 4.0)
     assert event == "switched" and anchors.current.index == 0
     np.testing.assert_allclose(base[:3, 3], [1.5, 0.2, 0.0], atol=1e-9)
 
@@ -112,21 +112,21 @@ def test_new_map_continues_from_last_pose_and_merge_returns_to_old_anchor():
 def test_a_map_left_by_a_jump_while_tracking_is_never_picked_again():
     anchors = MapAnchors(BridgeConfig(), MOUNT)
     origin = planar(0.0, 0.0, 0.0, 0.0)
-    anchors.update(camera_in_slam(origin, origin, 2.0), 0.5)
-    anchors.update(camera_in_slam(origin, planar(1.0, 0.0, 0.0, 0.0), 2.0), 0.5)
+    anchors.update(camera_in_slam(origin, origin, 2.0), 0.5, 1.0)
+    anchors.update(camera_in_slam(origin, planar(1.0, 0.0, 0.0, 0.0), 2.0), 0.5, 2.0)
     anchors.tracking_lost()
     anchors.expect_new_map()
     new_origin = planar(1.0, 0.0, 0.0, 0.0)
-    anchors.update(camera_in_slam(new_origin, new_origin, 5.0), 0.2)
-    anchors.update(camera_in_slam(new_origin, planar(3.0, 0.0, 0.0, 0.0), 5.0), 0.2)
+    anchors.update(camera_in_slam(new_origin, new_origin, 5.0), 0.2, 3.0)
+    anchors.update(camera_in_slam(new_origin, planar(3.0, 0.0, 0.0, 0.0), 5.0), 0.2, 4.0)
     # While tracking, SLAM merges map 1 into map 0: the pose jumps into map 0's frame.
-    _, event = anchors.update(camera_in_slam(origin, planar(3.0, 0.0, 0.0, 0.0), 2.0), 0.5)
+    _, event = anchors.update(camera_in_slam(origin, planar(3.0, 0.0, 0.0, 0.0), 2.0), 0.5, 5.0)
     assert event == "switched" and anchors.current.index == 0
     assert anchors.anchors[1].retired and not anchors.anchors[0].retired
     # Lost, and back 0.6 m on in map 0's frame: map 1's anchor would read that pose 0.56 m
     # from the last one, nearer than map 0's own 0.6 m, yet it is map 0's.
     anchors.tracking_lost()
-    base, event = anchors.update(camera_in_slam(origin, planar(3.6, 0.0, 0.0, 0.0), 2.0), 0.5)
+    base, event = anchors.update(camera_in_slam(origin, planar(3.6, 0.0, 0.0, 0.0), 2.0), 0.5, 6.0)
     assert event == "relocalised" and anchors.current.index == 0
     np.testing.assert_allclose(base[:3, 3], [3.6, 0.0, 0.0], atol=1e-9)
 
@@ -134,13 +134,13 @@ def test_a_map_left_by_a_jump_while_tracking_is_never_picked_again():
 def test_new_map_detected_without_hint_when_far_from_old_map():
     anchors = MapAnchors(BridgeConfig(relocalise_tolerance_m=1.0), MOUNT)
     origin = np.eye(4)
-    anchors.update(camera_in_slam(origin, origin, 1.0), 1.0)
+    anchors.update(camera_in_slam(origin, origin, 1.0), 1.0, 1.0)
     for x in np.arange(0.2, 3.01, 0.2):
-        _, event = anchors.update(camera_in_slam(origin, planar(x, 0, 0, 0), 1.0), 1.0)
+        _, event = anchors.update(camera_in_slam(origin, planar(x, 0, 0, 0), 1.0), 1.0, 1.0 + x)
         assert event is None
     anchors.tracking_lost()
     here = planar(3.1, 0, 0, 0)
-    base, event = anchors.update(camera_in_slam(here, here, 4.0), 0.25)
+    base, event = anchors.update(camera_in_slam(here, here, 4.0), 0.25, 5.0)
     assert event == "new_map"
     np.testing.assert_allclose(base[:3, 3], [3.0, 0, 0], atol=1e-9)
 
@@ -148,9 +148,9 @@ def test_new_map_detected_without_hint_when_far_from_old_map():
 def test_relocalisation_in_same_map_is_not_a_new_map():
     anchors = MapAnchors(BridgeConfig(), MOUNT)
     origin = np.eye(4)
-    anchors.update(camera_in_slam(origin, origin, 1.0), 1.0)
+    anchors.update(camera_in_slam(origin, origin, 1.0), 1.0, 1.0)
     anchors.tracking_lost()
-    _, event = anchors.update(camera_in_slam(origin, planar(0.2, 0, 0, 0), 1.0), 1.0)
+    _, event = anchors.update(camera_in_slam(origin, planar(0.2, 0, 0, 0), 1.0), 1.0, 2.0)
     assert event == "relocalised" and len(anchors.anchors) == 1
 
 
@@ -273,25 +273,25 @@ def test_a_merge_of_a_robot_scanning_in_place_is_seen_in_the_cloud():
     anchors = MapAnchors(BridgeConfig(), MOUNT)
     world = room_points()
     origin, s0 = planar(0.0, 0.0, 0.0, 0.0), 2.0
-    anchors.update(camera_in_slam(origin, origin, s0), 1.0 / s0)
+    anchors.update(camera_in_slam(origin, origin, s0), 1.0 / s0, 1.0)
     seen0 = world[world[:, 0] > 0]
     assert anchors.on_cloud(in_slam(origin, seen0, s0)) is None
     anchors.tracking_lost()
     anchors.expect_new_map()
     turned, s1 = planar(0.0, 0.0, 0.0, np.radians(60)), 0.7
-    _, event = anchors.update(camera_in_slam(turned, turned, s1), 1.0 / s0)
+    _, event = anchors.update(camera_in_slam(turned, turned, s1), 1.0 / s0, 2.0)
     assert event == "new_map" and anchors.current.index == 1
     seen1 = world[world[:, 1] > 0]
     assert anchors.on_cloud(in_slam(turned, seen1, s1)) is None, "a new map is no merge"
     # Merged: one cloud in map 0's frame; the pose is in map 0's frame too, a small step.
     more = planar(0.0, 0.0, 0.0, np.radians(70))
-    _, event = anchors.update(camera_in_slam(origin, more, s0), 1.0 / s0)
+    _, event = anchors.update(camera_in_slam(origin, more, s0), 1.0 / s0, 3.0)
     assert event is None and anchors.current.index == 1, "the pose alone does not tell"
     merged = in_slam(origin, np.vstack([seen0, seen1]), s0)
     assert anchors.on_cloud(merged) == 0
     assert anchors.current.index == 0 and anchors.anchors[1].retired
     later = planar(0.0, 0.0, 0.0, np.radians(80))
-    base, event = anchors.update(camera_in_slam(origin, later, s0), 1.0 / s0)
+    base, event = anchors.update(camera_in_slam(origin, later, s0), 1.0 / s0, 4.0)
     assert event is None
     assert yaw_of(base) == pytest.approx(np.radians(80))
     # The same map goes on: no further merge.
@@ -302,25 +302,68 @@ def test_a_jump_while_tracking_that_no_anchor_explains_keeps_the_map_until_its_c
     anchors = MapAnchors(BridgeConfig(relocalise_tolerance_m=1.0), MOUNT)
     world = room_points(seed=1)
     origin, s0 = planar(0.0, 0.0, 0.0, 0.0), 1.0
-    anchors.update(camera_in_slam(origin, origin, s0), 1.0 / s0)
+    anchors.update(camera_in_slam(origin, origin, s0), 1.0 / s0, 1.0)
     anchors.on_cloud(in_slam(origin, world, s0))
     anchors.tracking_lost()
     anchors.expect_new_map()
     here, s1 = planar(0.5, 0.0, 0.0, 0.0), 3.0
-    anchors.update(camera_in_slam(here, here, s1), 1.0 / s0)
+    anchors.update(camera_in_slam(here, here, s1), 1.0 / s0, 2.0)
     anchors.on_cloud(in_slam(here, world[:1000], s1))
     # Map 1's scale is read 3 times too large until measured: its anchor puts the robot 3 m
     # off when SLAM merges it into map 0, 2 m on; no anchor explains the jump.
     there = planar(2.5, 0.0, 0.0, 0.0)
     base_before = anchors.last_base.copy()
-    base, event = anchors.update(camera_in_slam(origin, there, s0), 1.0)
+    base, event = anchors.update(camera_in_slam(origin, there, s0), 1.0, 3.0)
     assert event == "reframed" and anchors.current.index == 1 and len(anchors.anchors) == 2
     np.testing.assert_allclose(base, base_before, atol=1e-9)
     assert anchors.on_cloud(in_slam(origin, world, s0)) == 0
-    base, event = anchors.update(camera_in_slam(origin, there, s0), 1.0 / s0)
+    base, event = anchors.update(camera_in_slam(origin, there, s0), 1.0 / s0, 4.0)
     assert event is None and anchors.current.index == 0
     np.testing.assert_allclose(base[:3, 3], [2.5, 0.0, 0.0], atol=1e-9)
 
+
+def _double_loss_then_merge(anchors, world):
+    """Map 0 from the origin; the robot drives 1.5 m on and loses tracking twice there: map 1
+    holds a handful of points, map 2, begun at nearly the same pose, holds the wall ahead. Then
+    SLAM merges map 2 into map 0 and the pose, read in map 0, tells (stamp 4 s). Returns map 2's
+    last cloud, stamped 3.5 s."""
+    origin, s0 = planar(0.0, 0.0, 0.0, 0.0), 2.0
+    anchors.update(camera_in_slam(origin, origin, s0), 1.0 / s0, 1.0)
+    anchors.on_cloud(in_slam(origin, world[world[:, 0] > 0], s0))
+    here = planar(1.5, 0.0, 0.0, 0.0)
+    anchors.update(camera_in_slam(origin, here, s0), 1.0 / s0, 1.5)
+    ahead = world[world[:, 0] > 2.0]
+    for index, (start, units, n, stamp) in enumerate(
+            [(here, 0.7, 6, 2.0), (planar(1.52, 0.0, 0.0, 0.02), 0.72, len(ahead), 3.0)], 1):
+        anchors.tracking_lost()
+        anchors.expect_new_map()
+        _, event = anchors.update(camera_in_slam(start, start, units), 1.0 / s0, stamp)
+        assert event == "new_map" and anchors.current.index == index
+        cloud = in_slam(start, ahead[:n], units)
+        assert not anchors.is_late(stamp + 0.5)
+        assert anchors.on_cloud(cloud) is None
+    _, event = anchors.update(camera_in_slam(origin, here, s0), 1.0 / s0, 4.0)
+    assert event == "switched" and anchors.current.index == 0
+    return cloud
+
+
+def test_a_late_cloud_of_the_map_slam_merged_is_ignored():
+    # cartographer_sim, once: a cloud of map 2 handled 0.1 s after the pose that showed the
+    # merge into map 0 read as a merge of map 0 into map 1, the tiny map begun at the same pose.
+    anchors = MapAnchors(BridgeConfig(), MOUNT)
+    world = room_points(seed=2)
+    late = _double_loss_then_merge(anchors, world)
+    assert anchors.is_late(3.5)
+    merged = in_slam(planar(0.0, 0.0, 0.0, 0.0), world[world[:, 0] > 0], 2.0)
+    assert not anchors.is_late(4.5)
+    assert anchors.on_cloud(merged) is None
+    assert anchors.current.index == 0 and not anchors.anchors[0].retired
+    assert anchors.merge is not None and (anchors.merge.left, anchors.merge.into) == (2, 0)
+    # Taken as on time, the late cloud reads as a merge of map 0 into map 2 (or into map 1,
+    # whose handful of points it holds too), and map 0 is retired.
+    replayed = MapAnchors(BridgeConfig(), MOUNT)
+    _double_loss_then_merge(replayed, world)
+    assert replayed.on_cloud(late) in (1, 2) and replayed.anchors[0].retired
 
 def test_map_clouds_recognise_a_map_whose_points_were_refined():
     cfg = BridgeConfig()
@@ -429,14 +472,14 @@ def test_a_merged_cloud_unlike_the_maps_last_one_gives_no_scale():
 def test_a_rescaled_map_is_reanchored_where_the_robot_is():
     anchors = MapAnchors(BridgeConfig(), MOUNT)
     origin, s = planar(0.0, 0.0, 0.0, 0.0), 2.0
-    anchors.update(camera_in_slam(origin, origin, s), 1.0)
+    anchors.update(camera_in_slam(origin, origin, s), 1.0, 1.0)
     here = planar(1.0, 0.5, 0.0, 0.3)
-    base_before, _ = anchors.update(camera_in_slam(origin, here, s), 1.0)
+    base_before, _ = anchors.update(camera_in_slam(origin, here, s), 1.0, 2.0)
     # The map is read at 1 m per unit, twice its true scale; set right, it stays under the robot.
     anchors.rescale(1.0 / s)
-    base, event = anchors.update(camera_in_slam(origin, here, s), 1.0 / s)
+    base, event = anchors.update(camera_in_slam(origin, here, s), 1.0 / s, 3.0)
     assert event is None
     np.testing.assert_allclose(base, base_before, atol=1e-9)
     on = planar(2.0, 0.5, 0.0, 0.3)
-    base, event = anchors.update(camera_in_slam(origin, on, s), 1.0 / s)
+    base, event = anchors.update(camera_in_slam(origin, on, s), 1.0 / s, 4.0)
     assert event is None and np.linalg.norm(base[:3, 3] - base_before[:3, 3]) == pytest.approx(1.0)

@@ -71,7 +71,6 @@ class SlamBridgeNode:
         self.n_points = 0
         self.points_before_loss = 0
         self.reacquiring = False
-        self.reacquired_stamp = None
         self.map_event = ""
         self.last_tf_stamp = None
         # Subscriber and timer callbacks run on their own threads and share the state below.
@@ -148,9 +147,8 @@ class SlamBridgeNode:
             return
         self.n_poses += 1
         metres_per_unit, _, _ = self.scales.current.estimate()
-        t_map_base, event = self.anchors.update(t_slam_cam, metres_per_unit)
-        if self.reacquiring:
-            self.reacquired_stamp = msg.header.stamp
+        t_map_base, event = self.anchors.update(t_slam_cam, metres_per_unit,
+                                                msg.header.stamp.to_sec())
         self.reacquiring = False
         self._on_map_event(event)
         self.t_map_base = t_map_base
@@ -207,8 +205,8 @@ class SlamBridgeNode:
             return
         if anchor is None or self.state != OK:
             return
-        if self.reacquired_stamp is not None and msg.header.stamp < self.reacquired_stamp:
-            return  # the map tracked before the loss, late: it would read as a merge into it
+        if self.anchors.is_late(msg.header.stamp.to_sec()):
+            return  # the map before the current one: it would read as a merge into it
         if self.anchors.on_cloud(points) is not None:
             self._on_map_event("switched")
             anchor = self.anchors.current

@@ -13,12 +13,6 @@ from sparse_nav.msg import MotionStatus, SlamScale, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.scanning import initial_scan, to_velocity_segments
 
-# The scan speeds the rostests' scenarios were set on (the conductor's defaults before e28b609).
-# At 0.3 m/s and 1.3 rad/s cartographer_sim once saw SLAM merge map 2 into map 0 and the bridge
-# then take a late cloud for a merge of map 0 into map 1, so the first fragment was renamed: a
-# bridge fault noted on issue 7, not what these tests are about.
-SCAN_SPEED_M_S, SCAN_TURN_RATE_RAD_S = 0.2, 1.0
-
 
 class MotionHarness:
     def __init__(self):
@@ -73,8 +67,7 @@ class MotionHarness:
                 self.cmd_pub.publish(cmd)
                 rate.sleep()
 
-        for v, w, duration in to_velocity_segments(initial_scan(), SCAN_SPEED_M_S,
-                                                   SCAN_TURN_RATE_RAD_S):
+        for v, w, duration in to_velocity_segments(initial_scan()):
             drive(v, w, duration)
             with self.lock:
                 ready = (self.slam_state is not None and self.slam_state.state == SlamState.OK

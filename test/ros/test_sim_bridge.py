@@ -1,7 +1,5 @@
 #!/usr/bin/python3
 """rostest: the simulator and slam_bridge together publish the wrapper's topics, TF and states."""
-import os
-import sys
 import threading
 import unittest
 
@@ -16,9 +14,6 @@ from std_msgs.msg import Float64, Int32
 from sparse_nav.msg import SlamScale, SlamState
 from sparse_nav.ros.robot_io import TelloClient
 from sparse_nav.scanning import initial_scan, to_tello_commands, to_velocity_segments
-
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from motion_harness import SCAN_SPEED_M_S, SCAN_TURN_RATE_RAD_S  # noqa: E402
 
 TOPICS = [("/clock", Clock), ("orb_slam3/camera_pose", PoseStamped),
           ("orb_slam3/tracked_points", PointCloud2), ("orb_slam3/all_points", PointCloud2),
@@ -58,8 +53,7 @@ class SimBridgeTest(unittest.TestCase):
         steps = initial_scan() * 3
         if self.robot == "ground":
             rate = rospy.Rate(20)
-            for v, w, duration in to_velocity_segments(steps, SCAN_SPEED_M_S,
-                                                       SCAN_TURN_RATE_RAD_S):
+            for v, w, duration in to_velocity_segments(steps):
                 end = rospy.Time.now() + rospy.Duration(duration)
                 while rospy.Time.now() < end and not rospy.is_shutdown():
                     cmd = Twist()

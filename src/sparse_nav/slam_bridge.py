@@ -159,6 +159,7 @@ class MapAnchors:
         self._reanchor_next = False
         self._clouds = MapClouds(config)
         self._entered_s = None  # stamp of the pose that put the robot in the current map
+        self._last_t_slam_cam = None
 
     def tracking_lost(self):
         """The next pose may be in another map (a new one, or an earlier one after a merge)."""
@@ -199,7 +200,13 @@ class MapAnchors:
             if self._reanchor_next and not self._needs_check:
                 self._reanchor_at_last_base(t_slam_cam)
             candidate = self.current.base_pose(t_slam_cam, self._t_cam_base)
-            step = np.linalg.norm(candidate[:3, 3] - self.last_base[:3, 3])
+            # A jump is SLAM's: both poses read at the map's present scale, so that a new scale
+            # (which moves the robot about the map's origin) is no jump. A young map's first
+            # samples may triple it, and the pose, near the origin of both maps for a robot
+            # scanning in place, then read as a switch back to the earlier map.
+            before = (self.last_base if self._last_t_slam_cam is None else
+                      self.current.base_pose(self._last_t_slam_cam, self._t_cam_base))
+            step = np.linalg.norm(candidate[:3, 3] - before[:3, 3])
             jumped = step > self._cfg.jump_threshold_m and not self._accept_next
             if self._needs_check or jumped:
                 left = self.current
@@ -229,6 +236,7 @@ class MapAnchors:
         self._accept_next = False
         self._reanchor_next = False
         self.last_base = self.current.base_pose(t_slam_cam, self._t_cam_base)
+        self._last_t_slam_cam = t_slam_cam
         return self.last_base, event
 
     def is_late(self, cloud_stamp_s):

@@ -322,6 +322,27 @@ def test_a_jump_while_tracking_that_no_anchor_explains_keeps_the_map_until_its_c
     np.testing.assert_allclose(base[:3, 3], [2.5, 0.0, 0.0], atol=1e-9)
 
 
+def test_a_new_scale_for_a_young_map_is_no_jump_back_to_the_earlier_map():
+    # sim_bridge_ground: a new map begun where the robot scans in place, read at the earlier
+    # map's scale until the odometry's first samples made it several times larger. The robot
+    # then moved by a metre at once, and map 0's anchor, whose origin is as near, explained the
+    # pose: a switch back to map 0 a second before SLAM merged.
+    anchors = MapAnchors(BridgeConfig(), MOUNT)
+    origin = planar(0.0, 0.0, 0.0, 0.0)
+    anchors.update(camera_in_slam(origin, origin, 1.0), 1.0, 1.0)
+    anchors.tracking_lost()
+    anchors.expect_new_map()
+    turned, s1 = planar(0.0, 0.0, 0.0, np.radians(60)), 0.2
+    anchors.update(camera_in_slam(turned, turned, s1), 1.0, 2.0)
+    on = turned @ planar(1.0, 0.0, 0.0, 0.0)
+    base, event = anchors.update(camera_in_slam(turned, on, s1), 1.0, 3.0)
+    assert event is None and np.linalg.norm(base[:3, 3]) == pytest.approx(0.2)
+    anchors.set_scale(1.0 / s1)
+    further = turned @ planar(1.1, 0.0, 0.0, 0.0)
+    base, event = anchors.update(camera_in_slam(turned, further, s1), 1.0 / s1, 4.0)
+    assert event is None and anchors.current.index == 1
+    np.testing.assert_allclose(base[:3, 3], [1.1, 0.0, 0.0], atol=1e-9)
+
 def _double_loss_then_merge(anchors, world):
     """Map 0 from the origin; the robot drives 1.5 m on and loses tracking twice there: map 1
     holds a handful of points, map 2, begun at nearly the same pose, holds the wall ahead. Then

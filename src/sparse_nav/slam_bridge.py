@@ -204,8 +204,7 @@ class MapAnchors:
             # (which moves the robot about the map's origin) is no jump. A young map's first
             # samples may triple it, and the pose, near the origin of both maps for a robot
             # scanning in place, then read as a switch back to the earlier map.
-            before = (self.last_base if self._last_t_slam_cam is None else
-                      self.current.base_pose(self._last_t_slam_cam, self._t_cam_base))
+            before = self.current.base_pose(self._last_t_slam_cam, self._t_cam_base)
             step = np.linalg.norm(candidate[:3, 3] - before[:3, 3])
             jumped = step > self._cfg.jump_threshold_m and not self._accept_next
             if self._needs_check or jumped:

@@ -490,6 +490,83 @@ def test_a_merged_cloud_unlike_the_maps_last_one_gives_no_scale():
     assert clouds.merge == (0, 1, {})
 
 
+def test_a_sparse_map_of_the_room_is_not_taken_to_hold_the_measured_one():
+    # Maps 1 and 2 began after map 0 and hold a third of the room's points between them; a
+    # random third of a room has the distances of the whole room. Map 2 merging into map 1 must
+    # not carry map 0's samples over at the ratio of the two maps' sizes (random:27, stressed
+    # ground: the scale ended 4.7 times off).
+    world = room_points(seed=9)
+    sparse = world[np.random.default_rng(3).random(len(world)) < 0.35]
+    clouds = MapClouds(BridgeConfig())
+    clouds.observe(0, world * 2.0)
+    clouds.observe(1, sparse[:100] * 0.7 + 5.0)
+    clouds.observe(2, sparse[100:] * 3.0 - 2.0)
+    assert clouds.observe(2, sparse * 0.7 + 5.0) == 1
+    assert clouds.merge == (2, 1, {2: pytest.approx(0.7 / 3.0, rel=0.05)})
+
+
+def test_a_map_merged_into_a_frame_no_cloud_showed_goes_on_in_it_at_its_scale():
+    # random:16 replayed, a ground robot scanning in place: young map 1 had a few points when
+    # tracking came back to map 0; then SLAM merged map 0 into map 1, whose points it had
+    # refined since. The cloud holds no known map's points where they were: the bridge read it
+    # as map 0's, its scale 14 times off, and carried that on at the next merges.
+    world = room_points(seed=10)
+    anchors = MapAnchors(BridgeConfig(), MOUNT)
+    scales = MapScales()
+    origin, s0 = planar(0.0, 0.0, 0.0, 0.0), 2.0
+    scales.on_map_event(0, anchors.update(camera_in_slam(origin, origin, s0), 1.0 / s0, 1.0)[1])
+    for _ in range(5):
+        scales.current.add(1.0, 1.0 / s0)
+    assert anchors.on_cloud(in_slam(origin, world, s0)) is None
+    anchors.tracking_lost()
+    anchors.expect_new_map()
+    turned, s1 = planar(0.0, 0.0, 0.0, np.radians(60)), 0.7
+    _, event = anchors.update(camera_in_slam(turned, turned, s1), 1.0 / s0, 2.0)
+    scales.on_map_event(anchors.current.index, event)
+    assert event == "new_map"
+    young = world[:80]
+    anchors.on_cloud(in_slam(turned, young, s1))
+    anchors.tracking_lost()
+    _, event = anchors.update(camera_in_slam(origin, origin, s0), 1.0 / s0, 3.0)
+    scales.on_map_event(anchors.current.index, event)
+    assert event == "switched" and anchors.current.index == 0
+    assert anchors.on_cloud(in_slam(origin, world, s0)) is None
+    # Merged into map 1: the pose, near the origin of both maps, barely moves.
+    _, event = anchors.update(camera_in_slam(turned, turned, s1), 1.0 / s0, 4.0)
+    assert event is None and anchors.current.index == 0
+    refined = in_slam(turned, world, s1)
+    refined[:80] += 0.05 * s1
+    assert anchors.on_cloud(refined) is None
+    assert anchors.merge == (0, 0, {0: pytest.approx(s1 / s0, rel=0.02)})
+    assert scales.on_merge(anchors.merge) == 0
+    value, _, n = scales.current.estimate()
+    assert value == pytest.approx(1.0 / s1, rel=0.02) and n == 5
+    # The map goes on where the robot is, at its new scale.
+    anchors.rescale(value)
+    base_before = anchors.last_base.copy()
+    base, _ = anchors.update(camera_in_slam(turned, turned, s1), 1.0, 5.0)
+    np.testing.assert_allclose(base, base_before, atol=1e-9)
+    for k in range(1, 11):
+        on = turned @ planar(0.1 * k, 0.0, 0.0, 0.0)
+        base, event = anchors.update(camera_in_slam(turned, on, s1), 1.0, 5.0 + 0.1 * k)
+        assert event is None and anchors.current.index == 0
+    assert np.linalg.norm(base[:3, 3] - base_before[:3, 3]) == pytest.approx(1.0, rel=0.03)
+    assert anchors.on_cloud(refined) is None and anchors.merge is None
+
+
+def test_a_young_map_whose_points_slam_refined_is_no_merge():
+    world = room_points(seed=11)
+    clouds = MapClouds(BridgeConfig())
+    clouds.observe(0, world * 2.0)
+    young = world[:300] * 0.7 + 5.0
+    clouds.observe(1, young)
+    # Four in five of its points moved by 5 % of the map's size; more points triangulated.
+    rng = np.random.default_rng(4)
+    refined = young + (rng.random(len(young)) < 0.8)[:, None] * 0.05 * np.ptp(young, axis=0)
+    assert clouds.observe(1, np.vstack([refined, world[300:400] * 0.7 + 5.0])) is None
+    assert clouds.merge is None
+
+
 def test_a_rescaled_map_is_reanchored_where_the_robot_is():
     anchors = MapAnchors(BridgeConfig(), MOUNT)
     origin, s = planar(0.0, 0.0, 0.0, 0.0), 2.0

@@ -166,16 +166,19 @@ class SlamBridgeNode:
                           "map explains it: re-anchored where the robot was",
                           self.anchors.current.index)
         if event in ("new_map", "switched", "reframed"):
-            # A scale sample across the jump would pair positions in two frames.
-            self.drone_moves.invalidate()
-            self.last_slam_position = None
-            self.last_odom_position = None
+            self._forget_scale_pairs()
         if event in ("new_map", "switched"):
             self.new_map_pending = True
             self.map_event = (f"SLAM started a new map (index {self.anchors.current.index})"
                               if event == "new_map" else
                               f"SLAM merged back into map {self.anchors.current.index}")
             self._publish_scale()  # the new map's own scale, or the prior it starts from
+
+    def _forget_scale_pairs(self):
+        """The SLAM frame changed: a scale sample across it would pair positions in two."""
+        self.drone_moves.invalidate()
+        self.last_slam_position = None
+        self.last_odom_position = None
 
     def _update_map_odom(self, stamp):
         try:
@@ -213,6 +216,20 @@ class SlamBridgeNode:
         self.points_before_loss = len(points)
         merge = self.anchors.merge
         source = None if merge is None else self.scales.on_merge(merge)
+        if merge is not None and merge.left == merge.into:
+            self._forget_scale_pairs()
+            value, _, n = self.scales.current.estimate()
+            self.anchors.rescale(value)
+            self._publish_scale()
+            rospy.logwarn("slam_bridge: map %d's points moved and no known map's points are in "
+                          "its cloud: SLAM merged it into a map whose points it moved too. %s; "
+                          "the map re-anchored where the robot is", merge.into,
+                          "Its scale samples dropped (no ratio of units measured)"
+                          if source is None else
+                          f"The cloud holds map {source}'s points at "
+                          f"{merge.units_ratios[source]:.3f} of its units to one: their scale "
+                          f"samples replace the map's ({value:.3f} m per unit from {n})")
+            return  # read through the old frame's anchor until the next pose re-anchors it
         if source is not None:
             value, _, n = self.scales.current.estimate()
             self.anchors.rescale(value)

@@ -351,10 +351,12 @@ class MapClouds:
         if len(points) == 0:
             return None
         # One map known (every run without a loss): nothing it could have merged into.
-        merged, tree = None, None
+        merged, tree, own_share = None, None, 1.0
         if any(k != current_index for k in self._samples):
             tree = cKDTree(points)
-            merged = self._merged_into(current_index, tree)
+            own_share = self._share_in(current_index, tree)
+            if own_share < self._cfg.merge_min_share:
+                merged = self._merged_into(current_index, tree)
         into = current_index if merged is None else merged
         left = current_index if merged is not None else self.merged_from
         self.merged_from = None
@@ -364,9 +366,8 @@ class MapClouds:
                 merged is not None or self._share_in(left, tree) < self._cfg.merge_min_share):
             self.merge = MapMerge(left, into, self._units_ratios(into, points))
             self._sizes.pop(left, None)  # its points are the merged map's now
-        elif left is None and merged is None and tree is not None \
-                and current_index in self._samples \
-                and self._share_in(current_index, tree) < _MOVED_MAX_SHARE:
+        elif left is None and merged is None and current_index in self._samples \
+                and own_share < _MOVED_MAX_SHARE:
             # None of the current map's points is where it was and no known map's points are in
             # the cloud: SLAM merged it into a map whose points moved too (a young map's,
             # refined as SLAM tracks in it again) or that no cloud showed. The cloud is in that
@@ -415,10 +416,8 @@ class MapClouds:
         return np.quantile(pdist(points), _SIZE_QUANTILES)
 
     def _merged_into(self, current_index, tree):
-        """The earlier map whose kept points reappear in the cloud of tree, if the current map's
-        own do not."""
-        if self._share_in(current_index, tree) >= self._cfg.merge_min_share:
-            return None
+        """The earlier map whose kept points reappear in the cloud of tree, if any (asked when
+        the current map's own do not)."""
         shares = {k: self._share_in(k, tree) for k in self._samples if k != current_index}
         best = max(shares, key=shares.get)
         return best if shares[best] >= self._cfg.merge_min_share else None

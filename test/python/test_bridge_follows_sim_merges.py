@@ -116,14 +116,14 @@ def replay_measured(world, max_samples=20):
         truth = sim.true_slam_scale()  # NaN once the scan ends lost
         if out.stamp_s - since > 8.0 and round(out.stamp_s / FRAME_S) % 15 == 0 \
                 and scales.current.estimate()[2] < max_samples:
-            scales.current.add(1.0, sim.true_slam_scale())
+            scales.current.add(1.0, truth)
         if cloud_due:
             if anchors.on_cloud(out.all_points) is not None:
                 scales.on_map_event(anchors.current.index, "switched")
             if anchors.merge is not None:
                 merges.append(anchors.merge)
                 if scales.on_merge(anchors.merge) is not None:
-                    carried.append((scales.current.estimate()[0], sim.true_slam_scale()))
+                    carried.append((scales.current.estimate()[0], truth))
     value, _, n = scales.current.estimate()
     return merges, carried, (value, truth, n, out.stamp_s - since)
 

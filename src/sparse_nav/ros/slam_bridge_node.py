@@ -216,29 +216,25 @@ class SlamBridgeNode:
         self.points_before_loss = len(points)
         merge = self.anchors.merge
         source = None if merge is None else self.scales.on_merge(merge)
-        if merge is not None and merge.left == merge.into:
-            self._forget_scale_pairs()
+        moved = merge is not None and merge.left == merge.into
+        if moved or source is not None:
             value, _, n = self.scales.current.estimate()
             self.anchors.rescale(value)
             self._publish_scale()
-            rospy.logwarn("slam_bridge: map %d's points moved and no known map's points are in "
-                          "its cloud: SLAM merged it into a map whose points it moved too. %s; "
-                          "the map re-anchored where the robot is", merge.into,
-                          "Its scale samples dropped (no ratio of units measured)"
-                          if source is None else
-                          f"The cloud holds map {source}'s points at "
-                          f"{merge.units_ratios[source]:.3f} of its units to one: their scale "
-                          f"samples replace the map's ({value:.3f} m per unit from {n})")
-            return  # read through the old frame's anchor until the next pose re-anchors it
-        if source is not None:
-            value, _, n = self.scales.current.estimate()
-            self.anchors.rescale(value)
-            self._publish_scale()
-            rospy.loginfo("slam_bridge: SLAM merged map %d into map %d, which holds map %d's "
-                          "points at %.3f of its units to one: their scale samples carried over "
-                          "(%.3f m per unit from %d), the map re-anchored where the robot is",
-                          merge.left, merge.into, source, merge.units_ratios[source], value, n)
-            return  # in the map's old scale; the next pose re-anchors it
+            carried = ("no ratio of units measured: its scale samples dropped" if source is None
+                       else f"the cloud holds map {source}'s points at "
+                            f"{merge.units_ratios[source]:.3f} of its units to one: their scale "
+                            f"samples carried over ({value:.3f} m per unit from {n})")
+            if moved:
+                self._forget_scale_pairs()
+                rospy.logwarn("slam_bridge: map %d's points moved and no known map's points are "
+                              "in its cloud (SLAM merged it into a map whose points it moved "
+                              "too); %s; the map re-anchored where the robot is",
+                              merge.into, carried)
+            else:
+                rospy.loginfo("slam_bridge: SLAM merged map %d into map %d; %s; the map "
+                              "re-anchored where the robot is", merge.left, merge.into, carried)
+            return  # in the map's old frame or scale; the next pose re-anchors it
         metric = points * anchor.metres_per_unit
         metric = metric @ anchor.t_map_slam[:3, :3].T + anchor.t_map_slam[:3, 3]
         self.n_points = len(metric)

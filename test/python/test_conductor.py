@@ -1410,6 +1410,59 @@ def test_a_skip_takes_the_retries_of_the_place_with_it():
         ScanRunnerConfig(cuts_before_skip=-1).validate()
 
 
+def test_a_place_backed_off_from_twice_is_passed_turning_on_unwatched():
+    # The sideways step faces a wall too bare to track: lost there at any speed. Retried until
+    # max_total_fails, it failed the ground robot's whole initial scan (random:30, 44, 46).
+    a, b, turn, c = (Step(forward_m=-0.3), Step(left_m=-0.3, ccw_deg=-20.0), Step(ccw_deg=-90.0),
+                     Step(forward_m=0.3))
+    runner = ScanRunner([a, b, b.undo(), turn, c])
+    assert runner.next_step((0.0, 0.0, 0.0)) == (a, 1.0)
+    runner.report(True)
+    start = (-0.3, 0.0, 0.0)
+    assert runner.next_step(start) == (b, 1.0) and runner.watching
+    runner.report_backed_off(tracked_again=True)
+    assert runner.next_step(start) == (b, 0.5)
+    runner.report_backed_off(tracked_again=True)
+    assert runner.skipped == [b, b.undo(), turn]
+    assert not runner.done
+    step, speed = runner.next_step(start)   # to where the turn ends, at full speed, unwatched
+    assert step.ccw_deg == pytest.approx(-90.0) and not step.forward_m and speed == 1.0
+    assert not runner.watching
+    runner.report(False)                     # tracking lost on the way: no soft fail
+    assert runner.next_step((-0.3, 0.0, -math.pi / 2)) == (c, 1.0) and runner.watching
+    runner.report(True)
+    assert runner.done and not runner.failed and runner.total_fails == 2
+    assert runner.share_done == pytest.approx(2 / 5)
+
+
+def test_a_pass_cut_off_goes_on_where_the_passed_turn_ends():
+    b, turn, c = Step(left_m=-0.3), Step(ccw_deg=-90.0), Step(forward_m=0.3)
+    runner = ScanRunner([b, turn, c])
+    for speed in (1.0, 0.5):
+        assert runner.next_step((0.0, 0.0, 0.0)) == (b, speed)
+        runner.report_backed_off(tracked_again=True)
+    runner.next_step((0.0, 0.0, 0.0))
+    runner.interrupt()                       # stopped for relocalising while passing
+    back = runner.return_steps((0.0, 0.0, -0.5))
+    assert pose_after((0.0, 0.0, -0.5), back) == pytest.approx((0.0, -0.3, -math.pi / 2))
+    assert runner.next_step((0.0, -0.3, -math.pi / 2)) == (c, 1.0) and runner.watching
+
+
+def test_no_place_is_passed_without_odometry_or_when_passing_is_off():
+    a, b = Step(forward_m=0.3), Step(ccw_deg=-60.0)
+    for runner, pose in ((ScanRunner([a, b]), None),
+                         (ScanRunner([a, b], ScanRunnerConfig(fails_before_pass=0)),
+                          (0.0, 0.0, 0.0))):
+        runner.next_step(pose)
+        runner.report(True)
+        for speed in (1.0, 0.5):
+            assert runner.next_step(pose) == (b, speed)
+            runner.report_backed_off(tracked_again=True)
+        assert runner.skipped == [] and runner.next_step(pose) == (a.undo(), 0.25)
+    with pytest.raises(ValueError):
+        ScanRunnerConfig(fails_before_pass=-1).validate()
+
+
 def test_too_many_soft_fails_fail_the_scan():
     runner = ScanRunner([Step(forward_m=0.3)], ScanRunnerConfig(max_total_fails=3))
     run(runner, [False, True, False, True, False])

@@ -19,6 +19,7 @@ from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observ
                                   ScanRunner, ScanRunnerConfig, take_off)
 from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
 from sparse_nav.conductor.outlines import OutlinesByMap
+from sparse_nav.conductor.scan_runner import drive_scan
 from sparse_nav.msg import ConductorState, MotionStatus, NavigatorStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
@@ -49,12 +50,6 @@ def _free_distance(grid, pose, off_map_free=False):
     x, y, yaw = pose
     return lambda bearing_deg: grid.free_distance(x, y, yaw + math.radians(bearing_deg),
                                                   off_map_free=off_map_free)
-
-
-def _describe(steps):
-    """Odometry steps in a log line: "+0.30 m, -24 deg"."""
-    return ", ".join(f"{s.forward_m:+.2f} m" if s.forward_m else f"{s.ccw_deg:+.0f} deg"
-                     for s in steps)
 
 
 class ConductorNode:
@@ -267,44 +262,9 @@ class ConductorNode:
         # frame is SLAM's own.
         odom_pose = (lambda: self._robot_pose(self.odom_frame)) if self.robot == "ground" \
             else (lambda: None)
-        back = runner.return_steps(odom_pose())
-        if back:
-            rospy.loginfo("conductor: back to where the scan goes on (%s)", _describe(back))
-        self._drive(back)
-        while not self.scan_stop.is_set() and not rospy.is_shutdown():
-            item = runner.next_step(odom_pose())
-            if item is None:
-                break
-            step, speed = item
-            # A step that loses tracking is stopped there and the ground robot drives straight
-            # back to where it began: SLAM relocalises in the same map only while recently lost
-            # (3 s in ORB-SLAM3), less than the rest of the step, the pause and a slow undo take.
-            watch = (runner.step_start_pose is not None and not runner.while_lost
-                     and not self._tracking_lost())
-            done = self.executor.execute(
-                step, speed,
-                should_stop=lambda: self.scan_stop.is_set() or (watch and self._tracking_lost()))
-            backed_off = (not done and watch and not self.scan_stop.is_set()
-                          and self._tracking_lost())
-            if backed_off:
-                back = runner.back_off_steps(odom_pose())
-                rospy.loginfo("conductor: tracking lost in a scan step: back to where it began "
-                              "(%s)", _describe(back) or "there already")
-                self._drive(back)
-            if self.scan_stop.is_set():
-                skipped = len(runner.skipped)
-                runner.interrupt()
-                if len(runner.skipped) > skipped:
-                    rospy.loginfo("conductor: the scan was cut off at one place %d times: it "
-                                  "skips %d steps, to the end of that place's turn",
-                                  self.runner_config.cuts_before_skip,
-                                  len(runner.skipped) - skipped)
-                break
-            rospy.sleep(0.5)  # the bridge's state catches up with the last motion
-            if backed_off:
-                runner.report_backed_off(tracked_again=not self._tracking_lost())
-            else:
-                runner.report_motion(done, self._tracking_lost())
+        drive_scan(runner, self.executor.execute, self._tracking_lost, odom_pose,
+                   stop_requested=lambda: self.scan_stop.is_set() or rospy.is_shutdown(),
+                   pause=rospy.sleep, log=lambda text: rospy.loginfo("conductor: %s", text))
         with self.lock:
             self.obs.scan_failed = runner.failed
             self.obs.scan_share_done = runner.share_done
@@ -315,13 +275,6 @@ class ConductorNode:
     def _tracking_lost(self):
         with self.lock:
             return self.obs.tracking_lost
-
-    def _drive(self, steps):
-        """Executes steps at full speed; stops with the scan."""
-        for step in steps:
-            if self.scan_stop.is_set():
-                return
-            self.executor.execute(step, should_stop=self.scan_stop.is_set)
 
     def _stop_scan(self):
         if self.scan_thread is not None and self.scan_thread.is_alive():

@@ -7,6 +7,7 @@ import pytest
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, ExitRequest,
                                   Observation, Phase, ScanRunner, ScanRunnerConfig, State,
                                   take_off)
+from sparse_nav.conductor.scan_runner import drive_scan
 from sparse_nav.scanning import Step, pose_after
 
 
@@ -1461,6 +1462,41 @@ def test_no_place_is_passed_without_odometry_or_when_passing_is_off():
         assert runner.skipped == [] and runner.next_step(pose) == (a.undo(), 0.25)
     with pytest.raises(ValueError):
         ScanRunnerConfig(fails_before_pass=-1).validate()
+
+
+class BareSectorRobot:
+    """A ground robot with odometry whose camera loses tracking while it faces a bearing in
+    (lo_deg, hi_deg) (a blank wall), at any speed, and tracks again outside it."""
+
+    def __init__(self, lo_deg, hi_deg):
+        self.pose, self.lost, self.bearings = (0.0, 0.0, 0.0), False, (lo_deg, hi_deg)
+
+    def execute(self, step, speed_factor=1.0, should_stop=lambda: False):
+        n = max(1, int(abs(step.ccw_deg)))  # the turn one degree at a time
+        parts = [Step(step.forward_m, step.left_m)] + [Step(ccw_deg=step.ccw_deg / n)] * n
+        for part in parts:
+            self.pose = pose_after(self.pose, [part])
+            bearing = (math.degrees(self.pose[2]) + 180.0) % 360.0 - 180.0
+            self.lost = self.bearings[0] < bearing < self.bearings[1]
+            if should_stop():
+                return False
+        return True
+
+
+@pytest.mark.parametrize("fails_before_pass", [0, 2])
+def test_the_scan_loop_passes_a_bare_view_that_retries_never_get_through(fails_before_pass):
+    robot = BareSectorRobot(-60.0, -40.0)
+    runner = ScanRunner([Step(ccw_deg=-90.0)] * 4,
+                        ScanRunnerConfig(fails_before_pass=fails_before_pass))
+    drive_scan(runner, robot.execute, lambda: robot.lost, lambda: robot.pose,
+               stop_requested=lambda: False, pause=lambda seconds: None)
+    if not fails_before_pass:  # every retry stops at -40 deg: the scan fails
+        assert runner.failed and runner.share_done == 0.0
+        return
+    assert not runner.failed and runner.done and runner.total_fails == 2
+    assert runner.skipped == [Step(ccw_deg=-90.0)] and runner.share_done == 0.75
+    assert math.cos(robot.pose[2]) == pytest.approx(1.0)   # the full circle turned
+    assert not robot.lost
 
 
 def test_too_many_soft_fails_fail_the_scan():

@@ -621,6 +621,20 @@ def test_side_walls_going_on_do_not_make_a_room_of_a_look_that_often_lost_tracki
             "SLAM map: too many losses for a room")
 
 
+@pytest.mark.parametrize("open_deg, phase", [(35, Phase.DONE), (30, Phase.FIND_EXIT)])
+def test_a_look_that_lost_tracking_takes_a_35_deg_opening_for_out(open_deg, phase):
+    # On the committed mission benches, lossy looks judged another room at 35 deg (the limit
+    # was 37.5) stood outside 23 times and in a room twice (bench_lossy_look_limit.py).
+    walls = tuple(not 60 <= k < 60 + open_deg // 5 for k in range(72))   # 5-deg bearings
+    m = looking_around()
+    m.tick(walls_around=walls, side_walls_beyond_m=1.2)
+    m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=40)
+    m.tick(tracking_lost=False, walls_around=walls, side_walls_beyond_m=1.2)
+    m.tick(scan_running=False)
+    assert m.conductor.phase == phase, m.conductor.reason
+    assert f"openings up to {open_deg} deg wide" in m.conductor.reason
+
+
 @pytest.mark.parametrize("side_m, said", [
     (0.0, "another room beyond the exit (openings up to 30 deg wide, the room's side walls end "
           "at the door's wall (0.0 m past it))"),

@@ -188,8 +188,8 @@ class ConductorConfig:
                                          # look is lossy (below); less, or no outline to
                                          # measure them on: the openings decide
     lossy_look_min_losses: int = 1       # a look around that lost tracking this often judges
-    lossy_look_max_opening_deg: float = 37.5  # ... its openings by this limit instead of
-                                         # room_max_opening_deg (a 40-deg opening is out),
+    lossy_look_max_opening_deg: float = 32.5  # ... its openings by this limit instead of
+                                         # room_max_opening_deg (a 35-deg opening is out),
                                          # whatever the side walls
     partial_look_means_out: bool = True  # a look around that lost tracking and ended in a
                                          # SLAM map begun during it (no merge back) judges

@@ -228,7 +228,7 @@ class ScanRunner:
         self._todo.extend(reversed(retry))
 
 
-def describe_steps(steps):
+def _describe_steps(steps):
     """Odometry steps in a log line: "+0.30 m, -24 deg"."""
     return ", ".join(f"{s.forward_m:+.2f} m" if s.forward_m else f"{s.ccw_deg:+.0f} deg"
                      for s in steps)
@@ -253,7 +253,7 @@ def drive_scan(runner, execute, tracking_lost, odom_pose, stop_requested, pause,
 
     back = runner.return_steps(odom_pose())
     if back:
-        log(f"back to where the scan goes on ({describe_steps(back)})")
+        log(f"back to where the scan goes on ({_describe_steps(back)})")
     drive(back)
     while not stop_requested():
         item = runner.next_step(odom_pose())
@@ -270,7 +270,7 @@ def drive_scan(runner, execute, tracking_lost, odom_pose, stop_requested, pause,
         if backed_off:
             back = runner.back_off_steps(odom_pose())
             log(f"tracking lost in a scan step: back to where it began "
-                f"({describe_steps(back) or 'there already'})")
+                f"({_describe_steps(back) or 'there already'})")
             drive(back)
         skipped = len(runner.skipped)
         if stop_requested():

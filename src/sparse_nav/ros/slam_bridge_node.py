@@ -189,6 +189,8 @@ class SlamBridgeNode:
             rospy.logwarn_throttle(5.0, f"slam_bridge: no {self.odom_frame} -> "
                                         f"{self.base_frame} at the pose time: {exc}")
             return
+        except rospy.ROSInterruptException:
+            return  # shut down while waiting for the transform: the last map -> odom stays
         self.t_map_odom = self.t_map_base @ invert(transform_to_matrix(tf.transform))
 
     @locked

@@ -1149,6 +1149,28 @@ def test_parked_near_an_exit_inside_an_obstacle_passes_through_from_there():
     assert any("no closer to the exit" in tr.reason for tr in m.conductor.history)
 
 
+def test_losses_pause_the_stall_clock_without_restarting_it():
+    # A loss every 30 s (the stressed benches) used to restart the clock, so a robot parked short
+    # of an exit never stalled and lost max_goal_losses times before the next candidate.
+    m = Mission(ConductorConfig(wall_scan_enabled=False, stall_timeout_s=30.0, exit_near_m=1.0))
+    m.tick(start_requested=True)
+    m.run_scan()
+    m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 5.0),))
+    m.tick(dt=10.0, robot_xy=(4.2, 0.0), navigator_state="following")  # parked 0.8 m short
+    for _ in range(2):
+        m.tick(dt=10.0)
+        m.tick(dt=1.0, tracking_lost=True)
+        assert m.conductor.state == State.LOST
+        m.tick(dt=20.0)                  # lost: not stalled meanwhile
+        m.tick(dt=1.0, tracking_lost=False)
+        assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
+    m.tick(dt=5.0)                        # 64 s parked, 22 + 5 s of them tracking: not yet
+    assert m.conductor.phase == Phase.GO_TO_EXIT
+    m.tick(dt=5.0)
+    assert m.conductor.phase == Phase.PASS_THROUGH
+    assert any("no closer to the exit" in tr.reason for tr in m.conductor.history)
+
+
 def passing_through_to_a_stall(parked_xy):
     """At the exit (5, 0), passing through toward (6.5, 0); parked at parked_xy, the navigator
     still 'following', for 35 s and then the goal failure grace."""
@@ -1201,12 +1223,12 @@ def test_no_progress_far_from_the_goal_counts_as_a_failure_time_lost_does_not():
     m.run_scan()
     m.tick(exit_answered=True, exit_xy=(5.0, 0.0), exit_alternatives=((0.0, 5.0),))
     m.tick(dt=20.0, robot_xy=(1.0, 0.0), navigator_state="following")
-    m.tick(dt=25.0, tracking_lost=True)
-    m.tick(dt=25.0)
-    m.tick(tracking_lost=False)  # 50 s lost: no stall
-    m.tick(dt=20.0)  # the stall clock starts again here
+    m.tick(dt=10.0, tracking_lost=True)
+    m.tick(dt=50.0)
+    m.tick(tracking_lost=False)  # 51 s lost: no stall, and the clock stood still
+    m.tick(dt=15.0)
     assert m.conductor.phase == Phase.GO_TO_EXIT and m.conductor.exit_xy == (5.0, 0.0)
-    assert m.tick(dt=31.0) == []  # 31 s without progress
+    assert m.tick(dt=6.0) == []  # 10 + 21 s tracking without progress: stalled
     actions = m.tick(dt=6.0)  # ... and the grace time: the next candidate
     assert m.conductor.exit_xy == (0.0, 5.0)
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (0.0, 5.0))]

@@ -314,6 +314,7 @@ class Conductor:
         self._goal_failures = 0
         self._failure_since_s = None
         self._progress = None  # (time, best distance to the goal) of the last progress
+        self._progress_paused = None  # (first, last) tick of LOST or RECOVER since progress
         self._goal_losses = 0  # losses in a row on the way to the goal without coming closer
         self._loss_distance = None  # the closest to the goal at those losses
         self._lost_since_s = None  # start of the present unbroken loss; None while tracking
@@ -408,7 +409,11 @@ class Conductor:
             self._exit_answer = (obs.exit_xy, tuple(obs.exit_alternatives), obs.exit_leads_out)
         safety = self._safety(t, obs)
         if safety is not None:
-            self._progress = None  # time lost or recovering is not a stall
+            # Time lost or recovering is not a stall, but it does not restart the stall clock
+            # either: with a loss every 30 s, a robot parked short of an exit never stalled for
+            # stall_timeout_s and waited for max_goal_losses losses instead (random:26).
+            if self._progress is not None:
+                self._progress_paused = ((self._progress_paused or (t, t))[0], t)
             if self.phase == Phase.FIND_EXIT and self._exit_paused_s is None:
                 self._exit_paused_s = t
             return safety
@@ -904,6 +909,10 @@ class Conductor:
         at the free cell nearest to a goal inside an obstacle, the navigator still 'following')."""
         if distance is None:
             return False
+        if self._progress_paused is not None and self._progress is not None:
+            first, last = self._progress_paused
+            self._progress = (self._progress[0] + last - first, self._progress[1])
+        self._progress_paused = None
         if self._progress is None or distance < self._progress[1] - self.config.stall_progress_m:
             self._progress = (t, distance)
         return t - self._progress[0] > self.config.stall_timeout_s

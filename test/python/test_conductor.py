@@ -7,7 +7,7 @@ import pytest
 from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, ExitRequest,
                                   Observation, Phase, ScanRunner, ScanRunnerConfig, State,
                                   take_off)
-from sparse_nav.conductor.scan_runner import drive_scan
+from sparse_nav.conductor.scan_runner import config_for_scan, drive_scan
 from sparse_nav.scanning import Step, pose_after
 
 
@@ -1498,6 +1498,16 @@ def test_no_place_is_passed_without_odometry_or_when_passing_is_off():
         assert runner.skipped == [] and runner.next_step(pose) == (a.undo(), 0.25)
     with pytest.raises(ValueError):
         ScanRunnerConfig(fails_before_pass=-1).validate()
+
+
+def test_a_look_around_beyond_an_exit_passes_no_place():
+    # A pass turns on unwatched until SLAM gives up its map; a look that ends in a new map is
+    # taken for out, so inside a room facing a bare wall it ended the mission there.
+    config = ScanRunnerConfig(fails_before_pass=2)
+    assert config_for_scan("look_around", config).fails_before_pass == 0
+    for kind in ("initial", "wall", "random", "relocalise"):
+        assert config_for_scan(kind, config) == config
+    assert config.fails_before_pass == 2
 
 
 class BareSectorRobot:

@@ -19,7 +19,7 @@ from sparse_nav.conductor import (ActionKind, Conductor, ConductorConfig, Observ
                                   ScanRunner, ScanRunnerConfig, take_off)
 from sparse_nav.conductor.grid_queries import GridView, order_exits, steps_out_of_obstacle
 from sparse_nav.conductor.outlines import OutlinesByMap
-from sparse_nav.conductor.scan_runner import drive_scan
+from sparse_nav.conductor.scan_runner import config_for_scan, drive_scan
 from sparse_nav.msg import ConductorState, MotionStatus, NavigatorStatus, SlamState
 from sparse_nav.ros.conversions import transform_to_matrix
 from sparse_nav.ros.params import read_fields
@@ -239,7 +239,8 @@ class ConductorNode:
                 self.paused_scan = None  # a new phase scan replaces the stopped one
             steps = self._scan_steps(name, pose)
             rospy.loginfo("conductor: %s scan, %d steps", name, len(steps))
-            runner = ScanRunner(steps, self.runner_config, while_lost=name == "relocalise")
+            runner = ScanRunner(steps, config_for_scan(name, self.runner_config),
+                                while_lost=name == "relocalise")
         self._start_runner(runner)
 
     def _start_runner(self, runner, resumable=True):

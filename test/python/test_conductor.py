@@ -1164,7 +1164,7 @@ def test_losses_pause_the_stall_clock_without_restarting_it():
         m.tick(dt=20.0)                  # lost: not stalled meanwhile
         m.tick(dt=1.0, tracking_lost=False)
         assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.GO_TO_EXIT)
-    m.tick(dt=5.0)                        # 64 s parked, 22 + 5 s of them tracking: not yet
+    m.tick(dt=5.0)                        # 69 s parked, 27 s of them tracking: not yet
     assert m.conductor.phase == Phase.GO_TO_EXIT
     m.tick(dt=5.0)
     assert m.conductor.phase == Phase.PASS_THROUGH

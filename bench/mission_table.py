@@ -15,8 +15,13 @@ reason), and runs that left no report. Reads only the files given; takes a secon
 import argparse
 import collections
 import json
+import os
 import re
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from bench_mission import summarise  # noqa: E402
 
 
 def failure_class(run):
@@ -51,17 +56,17 @@ def seed(world):
 
 
 def summary(runs):
-    ok = [r for r in runs if r.get("success")]
-    times = sorted(r["sim_time_s"] for r in ok)
-    classes = collections.Counter(failure_class(r) for r in runs if not r.get("success"))
+    """bench_mission's summary of the runs, with their failures by class."""
     failed = collections.defaultdict(list)
     for r in runs:
         if not r.get("success"):
             failed[failure_class(r)].append(seed(r["world"]))
-    return {"worlds": len(runs), "successes": len(ok),
-            "median_sim_time_to_exit_s": times[len(times) // 2] if times else None,
-            "failures": {k: {"count": n, "worlds": sorted(failed[k])}
-                         for k, n in classes.most_common()}}
+    s = summarise(runs)
+    return {"worlds": s["runs"], "successes": s["successes"],
+            "median_sim_time_to_exit_s": s["median_sim_time_to_exit_s"],
+            "look_arounds": s["look_arounds"],
+            "failures": {k: {"count": len(w), "worlds": sorted(w)}
+                         for k, w in sorted(failed.items(), key=lambda kw: -len(kw[1]))}}
 
 
 def main(argv=None):

@@ -196,6 +196,9 @@ class ConductorConfig:
                                          # its openings on a few seconds of map: out (done)
                                          # instead; beyond a door a camera loses tracking
                                          # in open space, and rarely in a room
+    recheck_lossy_look: bool = True      # a look around out by its losses alone (without them:
+                                         # another room) looks around again in place, and is
+                                         # out only if that look loses tracking too
     sudden_loss_min_tracked_points: int = 200  # a loss with this many map points tracked at
                                          # it (a blurred or covered camera, not a view with too
                                          # little in it) is no sign of open space: a look
@@ -338,6 +341,7 @@ class Conductor:
         self._last_look = ((), None)
         self._look_losses = 0  # tracking losses of the present look around (few points tracked)
         self._look_sudden_losses = 0  # ... and those with plenty tracked (not counted above)
+        self._look_rechecked = False  # the present look around is a second one (recheck_lossy_look)
         # SLAM map indices count up for each new map (merges go back to an older one): the
         # highest seen, and the highest seen when the present look around began.
         self._max_map_index = None
@@ -757,6 +761,7 @@ class Conductor:
         self._last_look = ((), None)
         self._look_losses = self._look_sudden_losses = 0
         self._look_known_map_index = self._max_map_index
+        self._look_rechecked = False
         self._door_xy = door_xy
         self._set(t, State.START, Phase.LOOK_AROUND, why)
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
@@ -811,9 +816,25 @@ class Conductor:
             # Side walls seen going on past the door's wall by a look that lost tracking this
             # often are the building's outside walls, or a wall beyond smeared along the view.
             why = ": too many losses for a room" if walled_beside else ""
+            # Out by its losses alone: without them the look would be another room. Looking
+            # around again tells the two apart: beyond a door, the open views lose tracking
+            # again; in a room, a loss that was a glitch (a covered lens) is not repeated.
+            by_losses = lossy and (walled_beside or opening <= cfg.room_max_opening_deg)
+            if by_losses and cfg.recheck_lossy_look:
+                if not self._look_rechecked:
+                    self._look_rechecked = True
+                    self._look_losses = self._look_sudden_losses = 0
+                    self._look_known_map_index = self._max_map_index
+                    self._set(t, State.START, Phase.LOOK_AROUND,
+                              f"{seen} around, {side}: out by its losses alone, look around "
+                              f"again")
+                    return [self._scan("look_around")]
+                why += ", again on a second look"
             self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
                                                  f"{side}{why}")
             return [Action(ActionKind.STOP)]
+        if self._look_rechecked:
+            seen += ", on a second look"
         # A blank wall ahead looks like open space; walls going on beside it do not.
         seen += f", {'but ' if wide else ''}{side}"
         if self.rooms >= cfg.max_rooms:

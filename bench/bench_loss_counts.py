@@ -1,20 +1,21 @@
 #!/usr/bin/python3
-"""Map points tracked just before each SLAM loss of a look around, by cause: what the conductor's
-``sudden_loss_min_tracked_points`` has to tell apart, without ROS.
+"""Looks around beyond doors, replayed without ROS under a forced loss every 30 sim-s: which
+losses the conductor counts as signs of open space, and whether a second look in place
+(``recheck_lossy_look``) tells a room's glitch from open space.
 
 The ground robot scans the room from the start (``scan_runner.drive_scan`` on the built-in
 simulator, the conductor's rules for a scan that loses tracking around it, as
 bench_scan_passes.py does), is driven on its true pose to 1.5 m beyond a door (each exit: truly
-outside; each partition door: truly in another room), and looks around there as the conductor
-does (``circular_scan``, no passing). A forced loss comes every 30 sim-s, as in the stressed
-mission bench. Each loss in the look is recorded with the map points SLAM tracked in the last
-tracking frame before it, the frame before that (the conductor may read that one when a SLAM
-message is dropped), and the simulator's cause (forced, or too few points / a fast turn).
+outside; each partition door: truly in another room), and looks around there twice as the
+conductor does (``circular_scan``, no passing). A forced loss comes every 30 sim-s, as in the
+stressed mission bench. Each loss is recorded with the map points SLAM tracked in the last
+tracking frame before it (``last``), the frame before that (``before``: the conductor may read
+that one when a SLAM message is dropped), and the simulator's cause (forced, or too few points).
 
-Per threshold: the natural losses it would call sudden (evidence of open space thrown away)
-and the forced ones it would count (a covered lens taken for open space), split by where the
-robot truly stood. Reads nothing from ../shared. About 5 minutes of wall time for the defaults;
-writes bench/results/loss_counts.json.
+Per ``sudden_loss_min_tracked_points`` threshold: the natural losses of the first looks it would
+call sudden and the forced ones it would count, and the looks lossy (a loss counted) on the
+first look and on both, by where the robot truly stood. Reads nothing from ../shared. About 18
+minutes of wall time for the defaults; writes bench/results/loss_counts.json.
 
     /usr/bin/python3 bench/bench_loss_counts.py --worlds 50
 """
@@ -144,19 +145,44 @@ def run_world(name, seed, look_s):
     return rows
 
 
-def tabulate(rows, key):
-    looks = [l for r in rows if r.get("reached") for l in r["losses"]]
+def counted(losses, key, threshold):
+    return sum(loss[key] < threshold for loss in losses)
+
+
+def summarise(rows, key):
+    """Per threshold and kind of place: losses of the first looks, and lossy looks."""
+    reached = [r for r in rows if r.get("reached")]
     table = {}
     for t in THRESHOLDS:
         cell = {}
         for kind in ("outside", "room"):
-            here = [l for r in rows if r.get("reached") and r["kind"] == kind for l in r["losses"]]
-            cell[kind] = {"natural_called_sudden": sum(not l["forced"] and l[key] >= t for l in here),
-                          "natural": sum(not l["forced"] for l in here),
-                          "forced_counted": sum(l["forced"] and l[key] < t for l in here),
-                          "forced": sum(l["forced"] for l in here)}
+            looks = [r for r in reached if r["kind"] == kind]
+            first = [loss for r in looks for loss in r["losses"]]
+            cell[kind] = {
+                "looks": len(looks),
+                "natural": sum(not loss["forced"] for loss in first),
+                "natural_called_sudden": sum(not loss["forced"] and loss[key] >= t
+                                             for loss in first),
+                "forced": sum(loss["forced"] for loss in first),
+                "forced_counted": sum(loss["forced"] and loss[key] < t for loss in first),
+                "lossy_first": sum(counted(r["losses"], key, t) > 0 for r in looks),
+                "lossy_both": sum(counted(r["losses"], key, t) > 0
+                                  and counted(r["losses2"], key, t) > 0 for r in looks)}
         table[t] = cell
-    return len(looks), table
+    return table
+
+
+def print_summary(summary):
+    for key, table in summary.items():
+        print(f"counts read from the {key!r} tracking frame:")
+        print(f"{'threshold':>9s} | {'where':7s} {'natural called sudden':>22s} "
+              f"{'forced counted':>15s} {'lossy looks':>12s} {'lossy twice':>12s}")
+        for t, cell in table.items():
+            for kind, c in cell.items():
+                print(f"{t:9d} | {kind:7s} {c['natural_called_sudden']:>13d} of {c['natural']:<5d}"
+                      f"{c['forced_counted']:>9d} of {c['forced']:<3d}"
+                      f"{c['lossy_first']:>6d} of {c['looks']:<3d}"
+                      f"{c['lossy_both']:>6d} of {c['looks']:<3d}")
 
 
 def main():
@@ -173,20 +199,8 @@ def main():
         for row in run_world(f"random:{k}", args.seed, args.look_s):
             rows.append(row)
             print(json.dumps(row), flush=True)
-    summary = {}
-    for key in ("last", "before"):
-        n, table = tabulate(rows, key)
-        summary[key] = table
-        print(f"counts read from the {key!r} tracking frame ({n} losses in looks):")
-        print(f"{'threshold':>9s} | {'outside: natural called sudden':>30s} "
-              f"{'forced counted':>15s} | {'room: natural called sudden':>27s} "
-              f"{'forced counted':>15s}")
-        for t, cell in table.items():
-            o, r = cell["outside"], cell["room"]
-            print(f"{t:9d} | {o['natural_called_sudden']:>22d} of {o['natural']:<5d}"
-                  f"{o['forced_counted']:>9d} of {o['forced']:<4d} | "
-                  f"{r['natural_called_sudden']:>19d} of {r['natural']:<5d}"
-                  f"{r['forced_counted']:>9d} of {r['forced']:<4d}")
+    summary = {key: summarise(rows, key) for key in ("last", "before")}
+    print_summary(summary)
     if args.json:
         os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
         with open(args.json, "w") as f:

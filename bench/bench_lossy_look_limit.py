@@ -39,7 +39,7 @@ def lossy_looks_judged_in(paths, min_losses):
                 for look in run.get("look_arounds") or []:
                     reason = look["reason"]
                     opening, losses = OPENING.search(reason), LOSSES.search(reason)
-                    if look["then"] == "done" or not opening or not losses \
+                    if look["then"] in ("done", "step_out") or not opening or not losses \
                             or int(losses.group(1)) < min_losses:
                         continue
                     looks.append((kind, int(opening.group(1)), bool(look["truly_outside"])))

@@ -58,9 +58,10 @@ def evaluate(world, final_phase, true_track, exit_truth_xy, ended_at_s=None, tim
 
 
 class LookArounds:
-    """Each look around beyond an exit, with the phase it led to (done: out; anything else: not
-    yet out), its reason, and whether the robot truly stood outside then: the measure of the
-    conductor's judgement, which the mission's success alone hides."""
+    """Each look around beyond an exit, with the phase it led to (done or step_out: out; anything
+    else: not yet out), its reason, where the robot truly stood then and whether that was
+    outside: the measure of the conductor's judgement, which the mission's success alone
+    hides."""
 
     def __init__(self, world):
         self.world = world
@@ -72,6 +73,7 @@ class LookArounds:
         if self._phase == "look_around" and phase != "look_around" and true_xy is not None:
             self.records.append({"sim_time_s": round(float(sim_time_s), 2), "then": phase,
                                  "reason": reason,
+                                 "true_xy": [round(float(v), 2) for v in true_xy[:2]],
                                  "truly_outside": left_the_room(self.world, true_xy)})
         self._phase = phase
 
@@ -98,11 +100,12 @@ class PairedTruthScale:
 
 
 def tally_look_arounds(records):
-    """Counts of look-around records by verdict (out or inside) and truth."""
+    """Counts of look-around records by verdict (out: done, or stepping out to be done; else
+    inside) and truth."""
     counts = {"out_truly_outside": 0, "out_truly_inside": 0, "inside_truly_outside": 0,
               "inside_truly_inside": 0}
     for look in records:
-        verdict = "out" if look["then"] == "done" else "inside"
+        verdict = "out" if look["then"] in ("done", "step_out") else "inside"
         counts[f"{verdict}_truly_{'outside' if look['truly_outside'] else 'inside'}"] += 1
     return counts
 

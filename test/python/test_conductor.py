@@ -725,6 +725,105 @@ def test_each_door_gets_its_own_second_look():
     assert [(a.kind, a.payload) for a in actions] == [(ActionKind.SCAN, "look_around")]
 
 
+OUT_LOOK = ("passed through the exit: openings up to 150 deg wide around, the room's side walls "
+            "end at the door's wall (0.0 m past it)")
+
+
+def looked_out_from(robot_xy, config=None, slam_map_index=0):
+    """looking_around, the robot moved to robot_xy (SLAM map slam_map_index) and the look there
+    out: the actions it ends with."""
+    m = looking_around(config)
+    m.tick(robot_xy=robot_xy, slam_map_index=slam_map_index, walls_around=WALLS_OUTSIDE,
+           side_walls_beyond_m=0.0)
+    m.tick(dt=6.0)   # past map_settle_s of a map change
+    return m, m.tick(scan_running=False)
+
+
+def test_a_look_out_that_ended_in_the_door_steps_out_to_the_point_beyond_then_is_done():
+    # random:6 and 50 (drone, stressed): the look said out, the robot truly back in the door.
+    m, actions = looked_out_from((5.6, 0.2))   # 0.4 m inside ROOM's east wall
+    assert [(a.kind, a.payload) for a in actions] == [(ActionKind.GOAL, (6.5, 0.0))]
+    assert (m.conductor.state, m.conductor.phase) == (State.GOAL, Phase.STEP_OUT)
+    assert m.conductor.reason == (f"{OUT_LOOK}; 0.00 m outside the room outline: step out to "
+                                  f"(6.50, 0.00) beyond the exit")
+    m.tick(robot_xy=(6.0, 0.1), navigator_state="following")
+    assert m.conductor.phase == Phase.STEP_OUT
+    actions = m.tick(robot_xy=(6.4, 0.0), navigator_state="reached")
+    assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert (m.conductor.state, m.conductor.phase) == (State.IDLE, Phase.DONE)
+    assert m.conductor.reason == f"{OUT_LOOK}; stepped out beyond the exit"
+
+
+@pytest.mark.parametrize("robot_xy, config, slam_map_index", [
+    ((7.2, 1.0), None, 0),                       # 1.2 m outside: out already
+    ((6.4, 0.1), None, 0),                       # at the point beyond
+    ((5.6, 0.2), None, 1),                       # the exit's coordinates mean nothing here
+    ((5.6, 0.2), ConductorConfig(wall_scan_enabled=False, step_out_min_outside_m=0.0), 0)])
+def test_a_look_out_is_done_where_the_robot_stands_when_there_is_no_stepping_out(
+        robot_xy, config, slam_map_index):
+    m, actions = looked_out_from(robot_xy, config, slam_map_index)
+    assert kinds(actions) == [ActionKind.STOP]
+    assert (m.conductor.phase, m.conductor.reason) == (Phase.DONE, OUT_LOOK)
+
+
+def stepping_out(config=None):
+    m, _ = looked_out_from((5.6, 0.2), config)
+    assert m.conductor.phase == Phase.STEP_OUT
+    return m
+
+
+def test_stepping_out_ends_done_wherever_it_gets_stuck():
+    m = stepping_out(ConductorConfig(wall_scan_enabled=False, max_goal_losses=3))
+    losing_tracking_on_the_way(m, (5.8, 0.0), 2)
+    actions = losing_tracking_on_the_way(m, (5.8, 0.0), 1)   # the third, no closer
+    assert kinds(actions)[-2:] == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, f"{OUT_LOOK}; SLAM tracking lost 3 times stepping out without coming closer: "
+                    f"done here")
+    # A navigator that finds no way there: done after the failure's grace time, no retries.
+    m = stepping_out()
+    m.tick(navigator_state="no_path")
+    m.tick(dt=5.0)
+    assert m.conductor.phase == Phase.STEP_OUT
+    actions = m.tick(dt=6.0)
+    assert kinds(actions) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert m.conductor.reason == f"{OUT_LOOK}; navigator: no_path stepping out: done here"
+    # Parked near it, never "reached" (the point beyond in a wall out there).
+    m = stepping_out()
+    m.tick(robot_xy=(5.9, 0.0), navigator_state="following")
+    m.tick(dt=31.0)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, f"{OUT_LOOK}; no closer to the point beyond the exit: done here")
+
+
+def test_tracking_lost_stepping_out_is_done_outside_the_outline_or_after_the_lost_timeout():
+    m = stepping_out()
+    m.tick(robot_xy=(7.2, 0.0), navigator_state="following")   # 1.2 m outside ROOM
+    m.tick(tracking_lost=True)
+    m.tick(dt=21.0)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "left the room: tracking lost 1.20 m outside its outline and not back in 20 s")
+    m = stepping_out()   # still in the door: lost for good there is done too, not gave up
+    m.tick(tracking_lost=True)
+    m.tick(dt=30.0)
+    assert m.conductor.phase == Phase.STEP_OUT and m.conductor.state == State.LOST
+    m.tick(dt=31.0)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, f"{OUT_LOOK}; tracking lost stepping out and not back in 60 s: done where it "
+                    f"was lost")
+
+
+def test_tracking_back_in_another_slam_map_stepping_out_waits_for_a_merge_then_is_done():
+    m = stepping_out()
+    m.tick(tracking_lost=True)
+    m.tick(tracking_lost=False, slam_map_index=1)
+    assert m.conductor.state == State.LOST and "relocalising until they merge" in m.conductor.reason
+    m.tick(dt=21.0)
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, f"{OUT_LOOK}; no merge back into the exit's SLAM map within 20 s stepping "
+                    f"out: done here")
+
+
 @pytest.mark.parametrize("side_m, said", [
     (0.0, "another room beyond the exit (openings up to 30 deg wide, the room's side walls end "
           "at the door's wall (0.0 m past it))"),

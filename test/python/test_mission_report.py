@@ -37,11 +37,15 @@ def test_each_look_around_is_kept_with_its_verdict_and_where_the_robot_truly_sto
     looks.observe(31.0, "done", "passed through the exit", (5.5, 5.5))
     looks.observe(32.0, "look_around", "look around", (5.5, 6.6))
     looks.observe(33.0, "done", "no pose", None)
+    looks.observe(34.0, "look_around", "look around", (5.5, 5.5))
+    looks.observe(35.0, "step_out", "passed through the exit: step out", (5.5, 5.5))
     assert [(r["sim_time_s"], r["then"], r["truly_outside"]) for r in looks.records] == [
-        (20.0, "find_exit", True), (31.0, "done", False)]
+        (20.0, "find_exit", True), (31.0, "done", False), (35.0, "step_out", False)]
     assert looks.records[0]["reason"] == "another room beyond the exit"
+    assert looks.records[0]["true_xy"] == [5.5, 6.6]
+    # Stepping out follows a look that said out.
     assert tally_look_arounds(looks.records + [{"then": "done", "truly_outside": True}]) == {
-        "out_truly_outside": 1, "out_truly_inside": 1, "inside_truly_outside": 1,
+        "out_truly_outside": 1, "out_truly_inside": 2, "inside_truly_outside": 1,
         "inside_truly_inside": 0}
 
 

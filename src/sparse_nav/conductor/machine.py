@@ -41,6 +41,8 @@ class Phase(enum.Enum):
     LOOK_AROUND = "look_around"      # beyond an exit: outside, or in another room?
     BACK_OUT = "back_out"            # the room looked into led back into the room before:
                                      # back to where that look stood, which was out
+    STEP_OUT = "step_out"            # a look around said out with the robot in the door:
+                                     # on to the point beyond the exit, then done
     RETURN_TO_START = "return_to_start"
     DONE = "done"
     GAVE_UP = "gave_up"
@@ -203,6 +205,11 @@ class ConductorConfig:
                                          # it (a blurred or covered camera, not a view with too
                                          # little in it) is no sign of open space: a look
                                          # around does not count it
+    step_out_min_outside_m: float = 1.0  # a look around says out with the robot less than this
+                                         # outside the room outline: it goes on to the point
+                                         # beyond the exit first (a look's relocalising sways,
+                                         # or a pass-through cut short by losses, leave it in
+                                         # the door); 0: done where it stands
 
     def validate(self):
         for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts",
@@ -238,8 +245,10 @@ class ConductorConfig:
         if not 0 < self.lossy_look_max_opening_deg <= self.room_max_opening_deg:
             raise ValueError(f"lossy_look_max_opening_deg must be in (0, room_max_opening_deg], "
                              f"got {self.lossy_look_max_opening_deg}")
-        if not (math.isfinite(self.pass_through_m) and self.pass_through_m >= 0):
-            raise ValueError(f"pass_through_m must be finite and >= 0, got {self.pass_through_m}")
+        for name in ("pass_through_m", "step_out_min_outside_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {value}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -251,6 +260,8 @@ class Transition:
 
 
 _FAILED_NAVIGATION = ("no_path", "goal_in_obstacle")
+# Where a loss with the robot last tracked clearly outside the room outline means out.
+_BEYOND_THE_EXIT = (Phase.PASS_THROUGH, Phase.LOOK_AROUND, Phase.STEP_OUT)
 
 
 def distance_outside(xy, outline):
@@ -337,6 +348,7 @@ class Conductor:
         # Beyond the exit: how far outside the room outline the robot was last tracked while the
         # outline was at hand (a change of SLAM map takes the outline away, not where it was).
         self._outside_by = 0.0
+        self._step_out_why = ""  # the look around's verdict that sent the robot stepping out
         # (walls_around, side_walls_beyond_m) of the newest look around while tracking
         self._last_look = ((), None)
         self._look_losses = 0  # tracking losses of the present look around (few points tracked)
@@ -404,7 +416,7 @@ class Conductor:
             return out
         if not obs.tracking_lost and obs.robot_xy is not None:
             self._last_tracked_xy = tuple(obs.robot_xy)
-            if self.phase in (Phase.PASS_THROUGH, Phase.LOOK_AROUND) and len(obs.room_outline) >= 3:
+            if self.phase in _BEYOND_THE_EXIT and len(obs.room_outline) >= 3:
                 self._outside_by = distance_outside(obs.robot_xy, obs.room_outline)
             if self.phase == Phase.LOOK_AROUND and len(obs.walls_around):
                 self._last_look = (tuple(obs.walls_around), obs.side_walls_beyond_m)
@@ -476,9 +488,10 @@ class Conductor:
         return self._out(t, outside, f" and not back in {cfg.left_room_wait_s:g} s")
 
     def _lost_outside_by(self):
-        """While passing through or looking around beyond the exit, how far outside the room
-        outline the robot was last tracked (0 inside it or without an outline); else None."""
-        if self.phase not in (Phase.PASS_THROUGH, Phase.LOOK_AROUND):
+        """While passing through, looking around beyond the exit or stepping out, how far
+        outside the room outline the robot was last tracked (0 inside it or without an outline);
+        else None."""
+        if self.phase not in _BEYOND_THE_EXIT:
             return None
         return self._outside_by
 
@@ -517,6 +530,9 @@ class Conductor:
                 if outside is not None and outside > 0:
                     return self._out(t, outside, f" and not back in {cfg.lost_timeout_s:g} s "
                                                  f"of relocalising")
+                if self.phase == Phase.STEP_OUT:
+                    return self._stepped_out(t, f"tracking lost stepping out and not back in "
+                                                f"{cfg.lost_timeout_s:g} s: done where it was lost")
                 return self._give_up(t, f"SLAM tracking lost for more than {cfg.lost_timeout_s:g} s")
             if not obs.scan_running:
                 return [self._scan("relocalise")]
@@ -552,6 +568,10 @@ class Conductor:
                     return actions + self._next_exit(t, why, why, scan_first=True)
                 if self.phase == Phase.PASS_THROUGH:
                     return actions + self._pass_through_untrackable(t, obs)
+                if self.phase == Phase.STEP_OUT:
+                    return actions + self._stepped_out(
+                        t, f"SLAM tracking lost {self._goal_losses} times stepping out without "
+                           f"coming closer: done here")
             if self._resume_state == State.GOAL and self.goal_xy is not None:
                 actions.append(Action(ActionKind.GOAL, self.goal_xy))  # the map may be new
             elif self._resume_state == State.START and not obs_scan_running:
@@ -613,7 +633,8 @@ class Conductor:
         """Tracking is back on the way to or through an exit, but in another SLAM map than the
         one the exit was found in (or merged into since): its coordinates mean nothing there."""
         return (self._resume_state == State.GOAL
-                and self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH, Phase.BACK_OUT)
+                and self.phase in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH, Phase.BACK_OUT,
+                                   Phase.STEP_OUT)
                 and None not in (self._alternatives_map, obs.slam_map_index)
                 and obs.slam_map_index != self._alternatives_map)
 
@@ -632,6 +653,8 @@ class Conductor:
         self._merge_wait_since_s = None
         stop = [Action(ActionKind.STOP)] if obs.scan_running else []
         why = f"no merge back into the exit's SLAM map within {cfg.merge_wait_s:g} s"
+        if self.phase == Phase.STEP_OUT:
+            return stop + self._stepped_out(t, f"{why} stepping out: done here")
         if self.phase in (Phase.PASS_THROUGH, Phase.BACK_OUT):
             return stop + self._look_around(t, f"{why}, past the exit: look around in the new "
                                                f"map", door_xy=self.exit_xy)
@@ -660,7 +683,8 @@ class Conductor:
     def _count_goal_loss(self):
         """A loss on the way to an exit or through it counts when the robot came no closer since
         the last one (a forced or occasional loss on a route that makes progress does not)."""
-        if self.state != State.GOAL or self.phase not in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH) \
+        if self.state != State.GOAL or self.phase not in (Phase.GO_TO_EXIT, Phase.PASS_THROUGH,
+                                                          Phase.STEP_OUT) \
                 or self._last_tracked_xy is None or self.goal_xy is None:
             return
         distance = math.dist(self._last_tracked_xy, self.goal_xy)
@@ -830,9 +854,8 @@ class Conductor:
                               f"again")
                     return [self._scan("look_around")]
                 why += ", again on a second look"
-            self._set(t, State.IDLE, Phase.DONE, f"passed through the exit: {seen} around, "
-                                                 f"{side}{why}")
-            return [Action(ActionKind.STOP)]
+            return self._out_after_look(t, obs, f"passed through the exit: {seen} around, "
+                                                f"{side}{why}")
         if self._look_rechecked:
             seen += ", on a second look"
         # A blank wall ahead looks like open space; walls going on beside it do not.
@@ -855,6 +878,30 @@ class Conductor:
         self._exit_attempts = 0
         return self._ask_exit(t, f"another room beyond the exit ({seen}): find its exit "
                                  f"({self.rooms}/{cfg.max_rooms})")
+
+    def _out_after_look(self, t, obs, why):
+        """The look around says out: done where the robot stands when that is at the point
+        beyond the exit or step_out_min_outside_m outside the room outline; else on to the point
+        beyond first, when the exit's coordinates hold in the SLAM map tracked now."""
+        cfg = self.config
+        beyond = self._beyond_exit() if self.exit_xy is not None else None
+        if (beyond is not None and obs.robot_xy is not None and len(obs.room_outline) >= 3
+                and obs.slam_map_index is not None
+                and obs.slam_map_index == self._alternatives_map):
+            outside = distance_outside(obs.robot_xy, obs.room_outline)
+            if (outside < cfg.step_out_min_outside_m
+                    and math.dist(obs.robot_xy, beyond) > cfg.reached_tolerance_m):
+                self._step_out_why = why
+                return self._navigate(t, Phase.STEP_OUT, beyond,
+                                      f"{why}; {outside:.2f} m outside the room outline: step out "
+                                      f"to ({beyond[0]:.2f}, {beyond[1]:.2f}) beyond the exit")
+        self._set(t, State.IDLE, Phase.DONE, why)
+        return [Action(ActionKind.STOP)]
+
+    def _stepped_out(self, t, how):
+        """Done after stepping out (or trying to) on the look around's word."""
+        self._set(t, State.IDLE, Phase.DONE, f"{self._step_out_why}; {how}")
+        return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
 
     def _find_exit(self, t, obs):
         cfg = self.config
@@ -944,6 +991,8 @@ class Conductor:
                     if obs.robot_xy is not None and self.goal_xy is not None else None)
         near = distance is not None and distance <= cfg.reached_tolerance_m
         stalled = self._stalled(t, distance)
+        if stalled and distance <= cfg.exit_near_m and self.phase == Phase.STEP_OUT:
+            return self._stepped_out(t, "no closer to the point beyond the exit: done here")
         if stalled and distance <= cfg.exit_near_m and self.phase in (Phase.GO_TO_EXIT,
                                                                       Phase.PASS_THROUGH,
                                                                       Phase.BACK_OUT):
@@ -964,6 +1013,8 @@ class Conductor:
                         or self._back_in_room_before(t, obs)
                         or self._look_around(t, "passed through the exit: look around",
                                              self.exit_xy))
+            if self.phase == Phase.STEP_OUT:
+                return self._stepped_out(t, "stepped out beyond the exit")
             self._set(t, State.IDLE, Phase.DONE, "back at the start"
                       if self.phase == Phase.RETURN_TO_START else
                       "back out where the robot looked around beyond the room before's door")
@@ -983,6 +1034,9 @@ class Conductor:
             if self._failure_since_s is None:
                 self._failure_since_s = t
             elif t - self._failure_since_s > cfg.goal_failure_grace_s:
+                if self.phase == Phase.STEP_OUT:
+                    # The look around said out already: no need to get farther at any cost.
+                    return self._stepped_out(t, f"{failure} stepping out: done here")
                 self._goal_failures += 1
                 self._failure_since_s = None
                 if self._goal_failures >= cfg.max_goal_failures:

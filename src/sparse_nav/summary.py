@@ -21,8 +21,9 @@ def plot_summary(path, world, points, true_path, estimated_path, title="", found
     if len(pts):
         ax.scatter(pts[:, 0], pts[:, 1], s=2, color="red", label=f"SLAM points ({len(pts)})")
     for exit_ in world.exits:
-        ax.scatter([exit_["x"]], [exit_["y"]], s=200, marker="*", facecolors="none",
-                   edgecolors="green", label="true exit")
+        # Drawn over the trajectories, which cross the door and would hide it.
+        ax.scatter([exit_["x"]], [exit_["y"]], s=300, marker="*", facecolors="none",
+                   edgecolors="green", linewidths=2, zorder=6, label="true exit")
     for (x1, y1), (x2, y2) in exit_lines:
         ax.plot([x1, x2], [y1, y2], color="blue", linewidth=2.5, label="room lines at the exit")
     if found_exit is not None:

@@ -14,7 +14,7 @@ that one when a SLAM message is dropped), and the simulator's cause (forced, or 
 
 Per ``sudden_loss_min_tracked_points`` threshold: the natural losses of the first looks it would
 call sudden and the forced ones it would count, and the looks lossy (a loss counted) on the
-first look and on both, by where the robot truly stood. Reads nothing from ../shared. About 18
+first look and on both, by where the robot truly stood. Reads nothing from ../shared. About 10
 minutes of wall time for the defaults; writes bench/results/loss_counts.json.
 
     /usr/bin/python3 bench/bench_loss_counts.py --worlds 50
@@ -33,6 +33,7 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "..", "src"))
 
 from bench_scan_passes import LOST, STRESS_LOSS_PERIOD_S, TICK_S, SimGround  # noqa: E402
+from sparse_nav.conductor.machine import ConductorConfig  # noqa: E402
 from sparse_nav.conductor.scan_runner import (ScanRunner, ScanRunnerConfig,  # noqa: E402
                                               config_for_scan)
 from sparse_nav.scanning import (GROUND_INITIAL_SCAN_TURN_DEG, GROUND_SPEED_M_S,  # noqa: E402
@@ -172,6 +173,18 @@ def summarise(rows, key):
     return table
 
 
+def losses_per_look(rows, threshold=ConductorConfig().sudden_loss_min_tracked_points):
+    """{kind: {losses the conductor counts on the first look: looks}}, read from the last
+    tracking frame at the conductor's sudden-loss threshold (recheck_lossy_look_max_losses)."""
+    table = {}
+    for r in rows:
+        if r.get("reached"):
+            n = counted(r["losses"], "last", threshold)
+            cell = table.setdefault(r["kind"], {})
+            cell[n] = cell.get(n, 0) + 1
+    return {kind: dict(sorted(cell.items())) for kind, cell in sorted(table.items())}
+
+
 def print_summary(summary):
     for key, table in summary.items():
         print(f"counts read from the {key!r} tracking frame:")
@@ -201,11 +214,16 @@ def main():
             print(json.dumps(row), flush=True)
     summary = {key: summarise(rows, key) for key in ("last", "before")}
     print_summary(summary)
+    per_look = losses_per_look(rows)
+    for kind, cell in per_look.items():
+        print(f"{kind}: first looks by losses counted: "
+              + ", ".join(f"{n}: {looks}" for n, looks in cell.items()))
     if args.json:
         os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
         with open(args.json, "w") as f:
             json.dump({"seed": args.seed, "look_s": args.look_s,
                        "wall_s": round(time.time() - start, 1), "summary": summary,
+                       "first_look_losses": per_look,
                        "rows": rows}, f, indent=1)
 
 

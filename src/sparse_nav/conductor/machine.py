@@ -201,6 +201,9 @@ class ConductorConfig:
     recheck_lossy_look: bool = True      # a look around out by its losses alone (without them:
                                          # another room) looks around again in place, and is
                                          # out only if that look loses tracking too
+    recheck_lossy_look_max_losses: int = 2  # ... when it lost tracking at most this often: a
+                                         # glitch in a room costs a loss or two, open space
+                                         # more (a look with more is out at once)
     sudden_loss_min_tracked_points: int = 200  # a loss with this many map points tracked at
                                          # it (a blurred or covered camera, not a view with too
                                          # little in it) is no sign of open space: a look
@@ -214,7 +217,8 @@ class ConductorConfig:
     def validate(self):
         for name in ("max_scan_rounds", "max_scan_resumes", "max_exit_attempts",
                      "max_goal_failures", "max_goal_losses", "max_rooms", "max_rescans",
-                     "lossy_look_min_losses", "sudden_loss_min_tracked_points"):
+                     "lossy_look_min_losses", "sudden_loss_min_tracked_points",
+                     "recheck_lossy_look_max_losses"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("exit_answer_timeout_s", "goal_failure_grace_s", "reached_tolerance_m",
@@ -845,7 +849,8 @@ class Conductor:
             # again; in a room, a loss that was a glitch (a covered lens) is not repeated.
             by_losses = lossy and (walled_beside or opening <= cfg.room_max_opening_deg)
             if by_losses and cfg.recheck_lossy_look:
-                if not self._look_rechecked:
+                if (not self._look_rechecked
+                        and self._look_losses <= cfg.recheck_lossy_look_max_losses):
                     self._look_rechecked = True
                     self._look_losses = self._look_sudden_losses = 0
                     self._look_known_map_index = self._max_map_index
@@ -853,7 +858,9 @@ class Conductor:
                               f"{seen} around, {side}: out by its losses alone, look around "
                               f"again")
                     return [self._scan("look_around")]
-                why += ", again on a second look"
+                why += (", again on a second look" if self._look_rechecked else
+                        f", not looked again (more than {cfg.recheck_lossy_look_max_losses} "
+                        f"losses)")
             return self._out_after_look(t, obs, f"passed through the exit: {seen} around, "
                                                 f"{side}{why}")
         if self._look_rechecked:

@@ -2000,6 +2000,38 @@ def test_losing_tracking_again_and_again_passing_through_outside_the_outline_loo
                                   "here")
 
 
+def looking_around_begun_lost():
+    """Passing through, losses cut short 0.35 m beyond ROOM's east wall; the look around there
+    loses tracking as it begins."""
+    m = passing_through(ConductorConfig(wall_scan_enabled=False, max_goal_losses=3,
+                                        pass_through_m=3.0))
+    losing_tracking_on_the_way(m, (6.3, 0.0), 2)
+    losing_tracking_on_the_way(m, (6.35, 0.0), 1)
+    assert m.conductor.phase == Phase.LOOK_AROUND
+    m.tick(dt=0.05, tracking_lost=True, scan_running=True, walls_around=())
+    assert m.conductor.state == State.LOST
+    return m
+
+
+def test_a_look_begun_lost_waits_for_tracking_before_its_loss_means_out():
+    m = looking_around_begun_lost()
+    m.tick(dt=13.0)  # a look that had tracked would be out now
+    assert (m.conductor.state, m.conductor.phase) == (State.LOST, Phase.LOOK_AROUND)
+    m.tick(tracking_lost=False, walls_around=WALLS_ROOM, side_walls_beyond_m=1.5)
+    m.tick(dt=2.0)  # back: the look goes on, and what it sees decides
+    m.tick(scan_running=False)
+    assert m.conductor.phase == Phase.FIND_EXIT and "another room" in m.conductor.reason
+    m = looking_around_begun_lost()
+    m.tick(dt=m.conductor.config.lost_timeout_s - 1.0)
+    assert m.conductor.phase == Phase.LOOK_AROUND
+    assert kinds(m.tick(dt=2.0)) == [ActionKind.CANCEL_GOAL, ActionKind.STOP]
+    assert (m.conductor.phase, m.conductor.reason) == (
+        Phase.DONE, "passed through the exit: tracking lost as the look around began and not "
+                    "back in 60 s of relocalising: too little around to track, out")
+    with pytest.raises(ValueError, match="look_lost_out_min_tracked_s"):
+        ConductorConfig(look_lost_out_min_tracked_s=0.0).validate()
+
+
 def test_losing_tracking_again_and_again_passing_through_inside_the_outline_is_a_wrong_exit():
     m = passing_through(ConductorConfig(wall_scan_enabled=False, max_goal_losses=3))
     losing_tracking_on_the_way(m, (5.3, 0.0), 2)   # 0.7 m inside: the "exit" is in a wall

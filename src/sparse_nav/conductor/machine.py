@@ -153,6 +153,9 @@ class ConductorConfig:
     look_lost_out_s: float = 12.0        # looking around, tracking lost this long (more than a
                                          # relocalising try, wherever the robot is): out. A room
                                          # has walls to start a new map on at the first try
+    look_lost_out_min_tracked_s: float = 1.0  # ... once the look has tracked this long (s); a
+                                         # look begun lost (a pass-through cut short by losses)
+                                         # has seen nothing yet: out only after lost_timeout_s
     inside_room_margin_m: float = 0.5    # passed through yet this far inside the outline: the
     rejected_exit_radius_m: float = 1.0  # ... exit was wrong; later candidates this close to it
                                          # are skipped
@@ -228,7 +231,7 @@ class ConductorConfig:
                      "stall_timeout_s", "stall_progress_m", "exit_near_m",
                      "walls_around_range_m", "room_side_walls_min_m", "merge_wait_s",
                      "map_settle_s", "left_room_wait_s", "scan_retry_lost_s",
-                     "look_lost_out_s"):
+                     "look_lost_out_s", "look_lost_out_min_tracked_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {value}")
@@ -476,16 +479,22 @@ class Conductor:
 
         Looking around, a loss not relocalised within look_lost_out_s (more than the first
         relocalising try) is out wherever the robot was last tracked: a room has walls to start
-        a new map on (config/conductor.yaml gives the runs that set it)."""
+        a new map on (config/conductor.yaml gives the runs that set it). A look that has not
+        yet tracked look_lost_out_min_tracked_s has seen nothing beyond the door: its loss,
+        often the pass-through's in a false exit, waits lost_timeout_s."""
         cfg = self.config
         if not obs.tracking_lost or self.state != State.LOST:
             return None
         lost_s = t - self._lost_since_s
-        if self.phase == Phase.LOOK_AROUND and lost_s > cfg.look_lost_out_s:
-            self._set(t, State.IDLE, Phase.DONE,
-                      f"passed through the exit: tracking lost looking around and not back in "
-                      f"{cfg.look_lost_out_s:g} s of relocalising: too little around to track, out")
-            return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
+        if self.phase == Phase.LOOK_AROUND:
+            looked = sum(self._scan_tracked_s.values()) >= cfg.look_lost_out_min_tracked_s
+            limit = cfg.look_lost_out_s if looked else cfg.lost_timeout_s
+            if lost_s > limit:
+                when = "looking around" if looked else "as the look around began"
+                self._set(t, State.IDLE, Phase.DONE,
+                          f"passed through the exit: tracking lost {when} and not back in "
+                          f"{limit:g} s of relocalising: too little around to track, out")
+                return [Action(ActionKind.CANCEL_GOAL), Action(ActionKind.STOP)]
         outside = self._lost_outside_by()
         if outside is None or outside < cfg.left_room_margin_m or lost_s < cfg.left_room_wait_s:
             return None

@@ -2001,8 +2001,8 @@ def test_losing_tracking_again_and_again_passing_through_outside_the_outline_loo
 
 
 def looking_around_begun_lost():
-    """Passing through, losses cut short 0.35 m beyond ROOM's east wall; the look around there
-    loses tracking as it begins."""
+    """Passing through, losses cut it short 0.35 m beyond ROOM's east wall; the look around
+    there loses tracking as it begins."""
     m = passing_through(ConductorConfig(wall_scan_enabled=False, max_goal_losses=3,
                                         pass_through_m=3.0))
     losing_tracking_on_the_way(m, (6.3, 0.0), 2)

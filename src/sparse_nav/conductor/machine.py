@@ -487,7 +487,7 @@ class Conductor:
             return None
         lost_s = t - self._lost_since_s
         if self.phase == Phase.LOOK_AROUND:
-            looked = sum(self._scan_tracked_s.values()) >= cfg.look_lost_out_min_tracked_s
+            looked = self._scan_tracked_total_s() >= cfg.look_lost_out_min_tracked_s
             limit = cfg.look_lost_out_s if looked else cfg.lost_timeout_s
             if lost_s > limit:
                 when = "looking around" if looked else "as the look around began"
@@ -639,8 +639,12 @@ class Conductor:
     def _scan_map_share(self, obs):
         """Share of the running phase scan's tracked time that the SLAM map tracked now holds
         (maps merged into it count); 1 before any."""
-        tracked = sum(self._scan_tracked_s.values())
+        tracked = self._scan_tracked_total_s()
         return self._scan_tracked_s.get(obs.slam_map_index, 0.0) / tracked if tracked else 1.0
+
+    def _scan_tracked_total_s(self):
+        """Sim-seconds the running phase scan tracked, in all SLAM maps."""
+        return sum(self._scan_tracked_s.values())
 
     def _goal_in_another_map(self, obs):
         """Tracking is back on the way to or through an exit, but in another SLAM map than the

@@ -74,6 +74,7 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
                     "roslaunch_stderr": proc.stderr.strip()[-400:]}
         return {"world": world, "robot": robot, "error": error, "logs": logs}
     scale = report.get("scale") or {}
+    measured = report.get("scale_most_measured") or {}
     return {"world": world, "robot": robot, "success": report["success"],
             "sim_time_s": report["sim_time_s"], "ended_at_s": report.get("ended_at_s"),
             "tracking_losses": report["tracking_losses"],
@@ -82,6 +83,9 @@ def run_mission(world, robot, stress, limit_s, rate_factor, tmp, failed_logs_dir
             # A map built at the wrong scale fails the mission for reasons far from the scale.
             "scale_samples": scale.get("samples"),
             "scale_relative_error": scale.get("relative_error"),
+            # The final map is often one begun outside after a last loss, barely measured.
+            "scale_most_measured": {k: measured.get(k) for k in ("map_index", "samples",
+                                                                  "relative_error")},
             "look_arounds": report.get("look_arounds", []),
             **({"logs": logs} if logs else {})}
 

@@ -78,25 +78,56 @@ class LookArounds:
         self._phase = phase
 
 
-class PairedTruthScale:
-    """The simulator's true scale of the SLAM map the bridge's estimate is for.
+class ScaleByMap:
+    """Each SLAM map's last scale estimate next to the simulator's true scale of that map.
 
     The simulator publishes the true scale of its active map from the frame that map
     initialises, while the bridge names a new map only at its next pose; a robot that loses
     tracking at the mission's end (a drone landing) can start a map the bridge never names. A
     truth read while the bridge is lost can therefore belong to a map the estimate knows
-    nothing of, so truths are kept only while the bridge tracks."""
+    nothing of, so truths are kept only while the bridge tracks, under the map it tracks in.
+    The final map is often one begun outside after a last loss, with no samples: the map
+    measured most is the figure the mission drove on."""
 
     def __init__(self):
-        self.value = None
-        self._tracking = False
+        self._tracked_map = None  # the bridge's map index while it tracks, else None
+        self._truth = {}
+        self._estimate = {}
+        self.last_map = None  # the map of the last estimate
 
-    def on_tracking(self, tracking):
-        self._tracking = bool(tracking)
+    def on_state(self, tracking, map_index):
+        self._tracked_map = int(map_index) if tracking else None
 
     def on_truth(self, metres_per_unit):
-        if self._tracking and math.isfinite(metres_per_unit):
-            self.value = float(metres_per_unit)
+        if self._tracked_map is not None and math.isfinite(metres_per_unit):
+            self._truth[self._tracked_map] = float(metres_per_unit)
+
+    def on_estimate(self, map_index, metres_per_unit, confidence, n_samples, source):
+        self.last_map = int(map_index)
+        self._estimate[self.last_map] = (float(metres_per_unit), float(confidence),
+                                         int(n_samples), source)
+
+    def figures(self, map_index):
+        """The estimate, its samples and the truth of one map (None where unknown)."""
+        estimated, confidence, samples, source = self._estimate.get(map_index,
+                                                                    (None, 0.0, 0, None))
+        true = self._truth.get(map_index)
+        error = (abs(estimated - true) / true if estimated and true and math.isfinite(estimated)
+                 else None)
+        return {"map_index": map_index, "estimated_metres_per_unit": estimated,
+                "confidence": confidence, "source": source, "samples": samples,
+                "true_metres_per_unit": true, "relative_error": error}
+
+    def by_map(self):
+        return {str(k): self.figures(k) for k in sorted(self._estimate)}
+
+    def most_measured(self):
+        """The figures of the map with the most scale samples (the final map's on a tie), or
+        None before any estimate."""
+        if not self._estimate:
+            return None
+        return self.figures(max(self._estimate, key=lambda k: (self._estimate[k][2],
+                                                                 k == self.last_map)))
 
 
 def tally_look_arounds(records):

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from sparse_nav.mission_report import (LookArounds, MapAlignments, PairedTruthScale, evaluate,
+from sparse_nav.mission_report import (LookArounds, MapAlignments, ScaleByMap, evaluate,
                                        exit_error_m, left_the_room, path_length_m,
                                        mission_end_s, planar_alignment, tally_look_arounds,
                                        tracking_losses)
@@ -56,18 +56,45 @@ def test_lengths_and_errors():
 
 
 def test_the_true_scale_is_the_one_of_the_map_tracked_in_not_of_one_begun_while_lost():
-    truth = PairedTruthScale()
-    truth.on_truth(2.0)  # before any tracking: no map the bridge estimates for
-    assert truth.value is None
-    truth.on_tracking(True)
-    truth.on_truth(0.48)
-    truth.on_tracking(False)
-    truth.on_truth(2.7)  # a new map the simulator began while the bridge was lost (a landing)
-    assert truth.value == 0.48
-    truth.on_tracking(True)  # the bridge names the new map: its truth counts from now on
-    truth.on_truth(2.7)
-    truth.on_truth(float("nan"))
-    assert truth.value == 2.7
+    scales = ScaleByMap()
+    scales.on_truth(2.0)  # before any tracking: no map the bridge estimates for
+    scales.on_estimate(0, 1.0, 0.0, 0, "parameter")
+    assert scales.figures(0)["true_metres_per_unit"] is None
+    scales.on_state(True, 0)
+    scales.on_truth(0.48)
+    scales.on_estimate(0, 0.5, 0.9, 40, "odometry")
+    scales.on_state(False, 0)
+    scales.on_truth(2.7)  # a new map the simulator began while the bridge was lost (a landing)
+    final = scales.figures(scales.last_map)
+    assert final["true_metres_per_unit"] == 0.48
+    assert final["relative_error"] == pytest.approx(0.02 / 0.48)
+    scales.on_state(True, 1)  # the bridge names the new map: its truth counts from now on
+    scales.on_truth(2.7)
+    scales.on_truth(float("nan"))
+    assert scales.figures(1)["true_metres_per_unit"] == 2.7
+    assert scales.figures(0)["true_metres_per_unit"] == 0.48
+
+
+def test_each_map_keeps_its_own_scale_and_the_most_measured_one_is_reported():
+    scales = ScaleByMap()
+    assert scales.most_measured() is None
+    scales.on_state(True, 0)
+    scales.on_truth(0.5)
+    scales.on_estimate(0, 0.52, 0.9, 50, "odometry")
+    # A new map's prior can arrive before the state that names it: it names its own map.
+    scales.on_estimate(1, 0.52, 0.0, 0, "parameter")
+    assert scales.figures(0)["samples"] == 50
+    scales.on_state(True, 1)
+    scales.on_truth(0.05)  # begun outside after a loss, at a tenth of the room map's unit
+    final = scales.figures(scales.last_map)
+    assert (final["map_index"], final["samples"]) == (1, 0)
+    assert final["relative_error"] == pytest.approx(9.4)
+    best = scales.most_measured()
+    assert (best["map_index"], best["samples"]) == (0, 50)
+    assert best["relative_error"] == pytest.approx(0.04)
+    assert set(scales.by_map()) == {"0", "1"}
+    scales.on_estimate(1, 0.05, 0.9, 50, "odometry")  # as measured as map 0: the final wins
+    assert scales.most_measured()["map_index"] == 1
 
 
 def test_the_planar_alignment_puts_the_estimate_on_the_truth_and_ignores_tilt():

@@ -131,6 +131,7 @@ class SimBridgeTest(unittest.TestCase):
         scale = latest["slam/scale"]
         truth = latest["ground_truth/slam_scale"].data
         self.assertGreater(scale.n_samples, 0, "scale measured from known motions")
+        self.assertEqual(scale.map_index, states[-1].map_index, "the scale names its SLAM map")
         self.assertGreater(scale.confidence, 0.0)
         self.assertLess(abs(scale.metres_per_unit - truth) / truth, 0.5,
                         f"scale {scale.metres_per_unit:.3f} m/unit vs true {truth:.3f}")

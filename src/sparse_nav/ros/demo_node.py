@@ -22,7 +22,7 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64, Int32, String
 from tf2_msgs.msg import TFMessage
 
-from sparse_nav.mission_report import (LookArounds, MapAlignments, PairedTruthScale, evaluate,
+from sparse_nav.mission_report import (LookArounds, MapAlignments, ScaleByMap, evaluate,
                                        mission_end_s, tracking_losses)
 from sparse_nav.msg import ConductorState, ExitCandidates, FloorEstimate, SlamScale, SlamState
 from sparse_nav.pointfiles import write_points_csv
@@ -74,7 +74,7 @@ class DemoNode:
         self.world = load_ros_world(self.world_name)
         self.conductor_states = []
         self.look_arounds = LookArounds(self.world)
-        self.truth_scale = PairedTruthScale()
+        self.scale_by_map = ScaleByMap()
         self.t_truth_map = None  # the simulator's map -> sim_world, for the first SLAM map
         self.alignments = MapAlignments()
         self.clouds = {}  # SLAM map index -> its newest slam/points
@@ -108,9 +108,13 @@ class DemoNode:
                 self.clouds[self.states[-1].map_index] = msg
             elif topic == "slam/state":
                 self.states.append(msg)
-                self.truth_scale.on_tracking(msg.state in (SlamState.OK, SlamState.NEW_MAP))
+                self.scale_by_map.on_state(msg.state in (SlamState.OK, SlamState.NEW_MAP),
+                                           msg.map_index)
+            elif topic == "slam/scale":
+                self.scale_by_map.on_estimate(msg.map_index, msg.metres_per_unit, msg.confidence,
+                                              msg.n_samples, msg.source)
             elif topic == "ground_truth/slam_scale":
-                self.truth_scale.on_truth(msg.data)
+                self.scale_by_map.on_truth(msg.data)
             elif topic == "conductor/state":
                 self.conductor_states.append(msg)
                 self.look_arounds.observe(rospy.Time.now().to_sec(), msg.phase, msg.reason,
@@ -287,7 +291,9 @@ class DemoNode:
             latest = dict(self.latest)
             states = list(self.states)
             clouds = dict(self.clouds)
-            true_scale = self.truth_scale.value  # of the same moment as latest's slam/scale
+            final_scale = self.scale_by_map.figures(self.scale_by_map.last_map)
+            scales = {"scale_by_map": self.scale_by_map.by_map(),
+                      "scale_most_measured": self.scale_by_map.most_measured()}
         bag.close()
         raw = latest.get("orb_slam3/all_points")
         raw_points = cloud_to_points(raw) if raw is not None else np.empty((0, 3))
@@ -331,8 +337,6 @@ class DemoNode:
             if not visited or visited[-1] != [c.state, c.phase]:
                 visited.append([c.state, c.phase])
 
-        scale = latest.get("slam/scale")
-        estimated = scale.metres_per_unit if scale else None
         report = {
             "success": judgement["success"],
             "world": world.name,
@@ -352,15 +356,9 @@ class DemoNode:
             "tracking_losses": tracking_losses([s.state for s in states]),
             "slam_maps": len({s.map_index for s in states}),
             "final_slam_state": states[-1].reason if states else "no state received",
-            "scale": {
-                "estimated_metres_per_unit": estimated,
-                "confidence": scale.confidence if scale else 0.0,
-                "source": scale.source if scale else None,
-                "samples": scale.n_samples if scale else 0,
-                "true_metres_per_unit": true_scale,
-                "relative_error": (abs(estimated - true_scale) / true_scale)
-                if estimated and true_scale else None,
-            },
+            # The final map's (often one begun outside after a last loss) and each map's.
+            "scale": final_scale,
+            **scales,
             "map": grid_stats(grid),
             "drone_responses": {"ok": self.responses.count("ok"),
                                 "error": sum(1 for r in self.responses if r.startswith("error"))},

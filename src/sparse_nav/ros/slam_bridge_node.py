@@ -301,6 +301,7 @@ class SlamBridgeNode:
         msg.confidence = confidence
         msg.n_samples = n
         msg.source = self.scale_source if n else "parameter"
+        msg.map_index = self.anchors.current.index if self.anchors.current else 0
         self.scale_pub.publish(msg)
 
     def _lose_tracking(self):

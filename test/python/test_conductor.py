@@ -450,10 +450,9 @@ def test_walls_all_round_beyond_an_exit_are_another_room_whose_exit_is_found_in_
     assert m.conductor.goal_xy == pytest.approx(tuple(np.array([9.0, 3.0]) + 1.5 * along))
     m.tick(robot_xy=m.conductor.goal_xy, navigator_state="reached")
     m.tick(scan_running=True, navigator_state="")
+    look_loses_tracking(m)
     m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.0)
-    assert (m.conductor.phase, m.conductor.reason) == (
-        Phase.DONE, "passed through the exit: openings up to 150 deg wide around, the room's side "
-        "walls end at the door's wall (0.0 m past it)")
+    assert (m.conductor.phase, m.conductor.reason) == (Phase.DONE, OUT_LOOK)
 
 
 OUTSIDE_EAST = ((5.5, -3.0), (10.0, -3.0), (10.0, 3.0), (5.5, 3.0))  # beyond ROOM's door
@@ -600,10 +599,35 @@ def test_a_wide_opening_between_side_walls_going_on_past_the_doors_wall_is_anoth
     assert (m.conductor.phase, m.conductor.rooms) == (Phase.FIND_EXIT, 2)
     assert ("another room beyond the exit (openings up to 150 deg wide, but the room's side "
             "walls go on 2.5 m past the door's wall)") in m.conductor.reason
-    # Less than room_side_walls_min_m of them (a wall beyond the exit crossing their line): out.
+    # Less than room_side_walls_min_m of them (a wall beyond the exit crossing their line): out
+    # once the look lost tracking, as a camera facing open space does.
     m = looking_around()
+    look_loses_tracking(m, side_m=0.3)
     m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.3)
     assert m.conductor.phase == Phase.DONE
+
+
+@pytest.mark.parametrize("config, phase", [(None, Phase.FIND_EXIT),
+                                           (ConductorConfig(wall_scan_enabled=False,
+                                                            tracked_look_is_a_room=False),
+                                            Phase.DONE)])
+def test_a_look_that_kept_tracking_beside_a_room_outline_is_another_room(config, phase):
+    # Every such look the mission benches judged out since 2026-11-27 (13) stood in a room: an
+    # interior door into the second part of one outline, side walls ending at the door's wall.
+    m = looking_around(config)
+    m.tick(scan_running=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.3,
+           slam_tracked_points=150)
+    assert m.conductor.phase == phase, m.conductor.reason
+    if phase == Phase.FIND_EXIT:
+        assert ("another room beyond the exit (openings up to 150 deg wide, but the room's side "
+                "walls end at the door's wall (0.3 m past it), tracking all the way round)"
+                ) in m.conductor.reason
+    # A sudden loss (a covered lens, many points tracked at it) is no sign of open space.
+    m = looking_around(config)
+    m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=400)
+    m.tick(tracking_lost=False, walls_around=WALLS_OUTSIDE, side_walls_beyond_m=0.3)
+    m.tick(scan_running=False)
+    assert m.conductor.phase == phase, m.conductor.reason
 
 
 @pytest.mark.parametrize("losses, phase", [(0, Phase.FIND_EXIT), (1, Phase.DONE)])
@@ -742,13 +766,22 @@ def test_each_door_gets_its_own_second_look():
 
 
 OUT_LOOK = ("passed through the exit: openings up to 150 deg wide around, the room's side walls "
-            "end at the door's wall (0.0 m past it)")
+            "end at the door's wall (0.0 m past it); 1 tracking losses looking around, the look "
+            "in one SLAM map")
+
+
+def look_loses_tracking(m, times=1, walls=WALLS_OUTSIDE, side_m=0.0):
+    """While looking around, tracking lost (not suddenly) and back times times."""
+    for _ in range(times):
+        m.tick(tracking_lost=True, walls_around=(), slam_tracked_points=40)
+        m.tick(tracking_lost=False, walls_around=walls, side_walls_beyond_m=side_m)
 
 
 def looked_out_from(robot_xy, config=None, slam_map_index=0):
-    """looking_around, the robot moved to robot_xy (SLAM map slam_map_index) and the look there
-    out: the actions it ends with."""
+    """looking_around, losing tracking once as beyond a door, the robot moved to robot_xy (SLAM
+    map slam_map_index) and the look there out: the actions it ends with."""
     m = looking_around(config)
+    look_loses_tracking(m)
     m.tick(robot_xy=robot_xy, slam_map_index=slam_map_index, walls_around=WALLS_OUTSIDE,
            side_walls_beyond_m=0.0)
     m.tick(dt=6.0)   # past map_settle_s of a map change
@@ -770,16 +803,21 @@ def test_a_look_out_that_ended_in_the_door_steps_out_to_the_point_beyond_then_is
     assert m.conductor.reason == f"{OUT_LOOK}; stepped out beyond the exit"
 
 
-@pytest.mark.parametrize("robot_xy, config, slam_map_index", [
-    ((7.2, 1.0), None, 0),                       # 1.2 m outside: out already
-    ((6.4, 0.1), None, 0),                       # at the point beyond
-    ((5.6, 0.2), None, 1),                       # the exit's coordinates mean nothing here
-    ((5.6, 0.2), ConductorConfig(wall_scan_enabled=False, step_out_min_outside_m=0.0), 0)])
+IN_A_NEW_MAP = ("passed through the exit: tracking lost looking around (1 losses), and the look "
+                "ended in SLAM map 1, begun since, not in map 0: too little around to track, out")
+
+
+@pytest.mark.parametrize("robot_xy, config, slam_map_index, reason", [
+    ((7.2, 1.0), None, 0, OUT_LOOK),             # 1.2 m outside: out already
+    ((6.4, 0.1), None, 0, OUT_LOOK),             # at the point beyond
+    ((5.6, 0.2), None, 1, IN_A_NEW_MAP),         # the exit's coordinates mean nothing here
+    ((5.6, 0.2), ConductorConfig(wall_scan_enabled=False, step_out_min_outside_m=0.0), 0,
+     OUT_LOOK)])
 def test_a_look_out_is_done_where_the_robot_stands_when_there_is_no_stepping_out(
-        robot_xy, config, slam_map_index):
+        robot_xy, config, slam_map_index, reason):
     m, actions = looked_out_from(robot_xy, config, slam_map_index)
     assert kinds(actions) == [ActionKind.STOP]
-    assert (m.conductor.phase, m.conductor.reason) == (Phase.DONE, OUT_LOOK)
+    assert (m.conductor.phase, m.conductor.reason) == (Phase.DONE, reason)
 
 
 def stepping_out(config=None):

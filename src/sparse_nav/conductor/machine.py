@@ -201,6 +201,11 @@ class ConductorConfig:
                                          # its openings on a few seconds of map: out (done)
                                          # instead; beyond a door a camera loses tracking
                                          # in open space, and rarely in a room
+    tracked_look_is_a_room: bool = True  # a look around that never lost tracking (sudden
+                                         # losses aside), with a room outline to measure the
+                                         # side walls on: another room however wide the
+                                         # openings and short the side walls (a camera facing
+                                         # open space loses tracking)
     recheck_lossy_look: bool = True      # a look around out by its losses alone (without them:
                                          # another room) looks around again in place, and is
                                          # out only if that look loses tracking too
@@ -808,10 +813,11 @@ class Conductor:
         return [Action(ActionKind.CANCEL_GOAL), self._scan("look_around")]
 
     def _looked_around(self, t, obs):
-        """The room's side walls going on past the door's wall, or walls all round (but for the
-        door come through) whatever the side walls: another room, whose exit is looked for from
-        here, the door come through out of the running; else out: done (config/conductor.yaml
-        says why side walls ending at the door's wall no longer mean out)."""
+        """The room's side walls going on past the door's wall, walls all round (but for the
+        door come through) whatever the side walls, or tracking kept all the way round beside a
+        room outline: another room, whose exit is looked for from here, the door come through
+        out of the running; else out: done (config/conductor.yaml says why side walls ending at
+        the door's wall no longer mean out)."""
         cfg = self.config
         walls, side_m = ((tuple(obs.walls_around), obs.side_walls_beyond_m) if obs.walls_around
                          else self._last_look)
@@ -840,6 +846,8 @@ class Conductor:
         lossy = self._look_losses >= cfg.lossy_look_min_losses
         wide = opening > (cfg.lossy_look_max_opening_deg if lossy else cfg.room_max_opening_deg)
         walled_beside = side_m is not None and side_m >= cfg.room_side_walls_min_m
+        # Beside a room outline, a look that kept tracking all the way round faced walls.
+        tracked_in_room = cfg.tracked_look_is_a_room and not lossy and side_m is not None
         if side_m is None:
             side = "no room outline to measure the room's side walls on"
         elif walled_beside:
@@ -853,7 +861,7 @@ class Conductor:
         if self._look_sudden_losses:
             side += (f"; {self._look_sudden_losses} sudden tracking losses (at least "
                      f"{cfg.sudden_loss_min_tracked_points} map points tracked) not counted")
-        if wide and (lossy or not walled_beside):
+        if wide and (lossy or not (walled_beside or tracked_in_room)):
             # Side walls seen going on past the door's wall by a look that lost tracking this
             # often are the building's outside walls, or a wall beyond smeared along the view.
             why = ": too many losses for a room" if walled_beside else ""
@@ -880,6 +888,8 @@ class Conductor:
             seen += ", on a second look"
         # A blank wall ahead looks like open space; walls going on beside it do not.
         seen += f", {'but ' if wide else ''}{side}"
+        if wide and not walled_beside:
+            seen += ", tracking all the way round"
         if self.rooms >= cfg.max_rooms:
             kind = "another room" if wide else "walls all round"
             return self._give_up(t, f"{kind} beyond the exit ({seen}) after {self.rooms} rooms")

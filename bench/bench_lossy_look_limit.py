@@ -22,6 +22,8 @@ import json
 import os
 import re
 
+from mission_looks import recorded_looks
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 OPENING = re.compile(r"openings up to (\d+) deg")
 LOSSES = re.compile(r"(\d+) tracking losses looking around")
@@ -31,18 +33,13 @@ def lossy_looks_judged_in(paths, min_losses):
     """(robot and mode, widest opening deg, truly outside) of each lossy look judged another room
     by its openings."""
     looks = []
-    for path in paths:
-        with open(path) as f:
-            results = json.load(f).get("results", {})
-        for kind, table in results.items():
-            for run in table.get("runs", []):
-                for look in run.get("look_arounds") or []:
-                    reason = look["reason"]
-                    opening, losses = OPENING.search(reason), LOSSES.search(reason)
-                    if look["then"] in ("done", "step_out") or not opening or not losses \
-                            or int(losses.group(1)) < min_losses:
-                        continue
-                    looks.append((kind, int(opening.group(1)), bool(look["truly_outside"])))
+    for kind, look in recorded_looks(paths):
+        reason = look["reason"]
+        opening, losses = OPENING.search(reason), LOSSES.search(reason)
+        if look["then"] in ("done", "step_out") or not opening or not losses \
+                or int(losses.group(1)) < min_losses:
+            continue
+        looks.append((kind, int(opening.group(1)), bool(look["truly_outside"])))
     return looks
 
 

@@ -21,6 +21,8 @@ import os
 import re
 import subprocess
 
+from mission_looks import recorded_looks
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 COMMIT = re.compile(r"_([0-9a-f]{7,40})(?:_[a-z_]+)?\.json$")
 ENDED_BY_A_LOSS = ("tracking losses looking around", "not back in", "left the room",
@@ -45,17 +47,12 @@ def side_walls(reason):
 def tracked_looks(paths):
     """(robot and mode, verdict, side walls, truly outside) of each look that kept tracking."""
     looks = []
-    for path in paths:
-        with open(path) as f:
-            results = json.load(f).get("results", {})
-        for kind, table in results.items():
-            for run in table.get("runs", []):
-                for look in run.get("look_arounds") or []:
-                    reason = look["reason"]
-                    if any(sign in reason for sign in ENDED_BY_A_LOSS):
-                        continue
-                    verdict = "out" if look["then"] in ("done", "step_out") else "another room"
-                    looks.append((kind, verdict, side_walls(reason), bool(look["truly_outside"])))
+    for kind, look in recorded_looks(paths):
+        reason = look["reason"]
+        if any(sign in reason for sign in ENDED_BY_A_LOSS):
+            continue
+        verdict = "out" if look["then"] in ("done", "step_out") else "another room"
+        looks.append((kind, verdict, side_walls(reason), bool(look["truly_outside"])))
     return looks
 
 

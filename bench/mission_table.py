@@ -9,6 +9,10 @@ worlds, the successes, the median sim time to the exit of the successes, and the
 class: judged out while inside a room, out of sim time (by the phase it was in), gave up (by its
 reason), and runs that left no report. Reads only the files given; takes a second.
 
+With --pool, every run counts, as when one setting was run again at nearby commits to see the
+run-to-run spread: the share of successes over all runs with its 95 % Wilson interval, and the
+worlds that failed in more than one run (how often, and the class each time).
+
     /usr/bin/python3 bench/mission_table.py bench/results/mission_ground_stressed_1-31_72008ba.json \\
         bench/results/mission_ground_stressed_32-36_404cdf4.json
 """
@@ -18,6 +22,8 @@ import json
 import os
 import re
 import sys
+
+from scipy.stats import binomtest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
@@ -69,11 +75,60 @@ def summary(runs):
                          for k, w in sorted(failed.items(), key=lambda kw: -len(kw[1]))}}
 
 
+def pool(paths):
+    """{robot kind: every run of it in the files, in file order}."""
+    table = collections.defaultdict(list)
+    for path in paths:
+        with open(path) as f:
+            results = json.load(f).get("results", {})
+        for kind, entry in results.items():
+            table[kind].extend(entry.get("runs", []))
+    return table
+
+
+def pooled_summary(runs):
+    """Success share over all runs with its 95 % Wilson interval; worlds failed more than once."""
+    successes = sum(1 for r in runs if r.get("success"))
+    interval = binomtest(successes, len(runs)).proportion_ci(0.95, method="wilson")
+    tried, failed = collections.Counter(), collections.defaultdict(list)
+    for r in runs:
+        tried[r["world"]] += 1
+        if not r.get("success"):
+            failed[r["world"]].append(failure_class(r))
+    repeated = {w: {"failed": len(c), "runs": tried[w], "classes": c}
+                for w, c in sorted(failed.items(), key=lambda wc: (-len(wc[1]), seed(wc[0])))
+                if len(c) > 1}
+    return {"runs": len(runs), "successes": successes,
+            "success_share": round(successes / len(runs), 3),
+            "interval_95": [round(interval.low, 3), round(interval.high, 3)],
+            "worlds_failed_once": sum(1 for c in failed.values() if len(c) == 1),
+            "worlds_failed_more_than_once": repeated}
+
+
+def print_pooled(table):
+    for kind, row in table.items():
+        low, high = row["interval_95"]
+        print(f"{kind}: {row['successes']} of {row['runs']} runs "
+              f"({100 * row['success_share']:.1f} %, 95 % interval {100 * low:.1f}-"
+              f"{100 * high:.1f} %); {row['worlds_failed_once']} worlds failed once")
+        for world, w in row["worlds_failed_more_than_once"].items():
+            print(f"  {world} failed {w['failed']} of {w['runs']}: " + "; ".join(w["classes"]))
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("files", nargs="+", help="bench_mission.py result files, oldest first")
+    parser.add_argument("--pool", action="store_true",
+                        help="count every run, not the last of each world (see above)")
     parser.add_argument("--json", help="also write the table here")
     args = parser.parse_args(argv)
+    if args.pool:
+        table = {kind: pooled_summary(runs) for kind, runs in sorted(pool(args.files).items())}
+        print_pooled(table)
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump({"files": args.files, "pooled": table}, f, indent=1)
+        return 0
     table = {kind: summary([runs[w] for w in sorted(runs, key=seed)])
              for kind, runs in sorted(merge(args.files).items())}
     for kind, row in table.items():

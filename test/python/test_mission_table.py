@@ -48,3 +48,25 @@ def test_a_world_run_again_counts_once_as_the_last_file_has_it(tmp_path, capsys)
 
 def test_a_run_without_a_report_is_a_failure_of_its_own():
     assert mission_table.failure_class({"world": "random:4", "error": "no report"}) == "no report"
+
+
+def test_pooled_runs_all_count_with_an_interval_and_the_worlds_failed_again(tmp_path, capsys):
+    first = write(tmp_path / "a.json", "drone stressed", [
+        run("random:1", False, "done", "passed through the exit: openings up to 90 deg"),
+        run("random:2", True, "done"),
+        run("random:3", False, "look_around", ended=False)])
+    again = write(tmp_path / "b.json", "drone stressed", [
+        run("random:1", False, "gave_up", "SLAM tracking lost for more than 60 s"),
+        run("random:2", True, "done"),
+        run("random:3", True, "done")])
+    out = tmp_path / "pooled.json"
+    assert mission_table.main(["--pool", first, again, "--json", str(out)]) == 0
+    row = json.load(open(out))["pooled"]["drone stressed"]
+    assert row["runs"] == 6 and row["successes"] == 3 and row["success_share"] == 0.5
+    low, high = row["interval_95"]
+    assert 0.15 < low < 0.5 < high < 0.85   # Wilson, 3 of 6: about 0.19-0.81
+    assert row["worlds_failed_once"] == 1
+    assert row["worlds_failed_more_than_once"] == {
+        "random:1": {"failed": 2, "runs": 2, "classes": [
+            "judged out while inside", "gave up: SLAM tracking lost for more than N s"]}}
+    assert "drone stressed: 3 of 6 runs (50.0 %" in capsys.readouterr().out

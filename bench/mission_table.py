@@ -44,15 +44,21 @@ def failure_class(run):
     return f"out of time in {run['final_phase']}"
 
 
-def merge(paths):
-    """{robot kind: {world: run}}: the last file holding a world has its say."""
-    table = collections.defaultdict(dict)
+def recorded_runs(paths):
+    """(robot kind, run) of every run in the files, in file order."""
     for path in paths:
         with open(path) as f:
             results = json.load(f).get("results", {})
         for kind, entry in results.items():
             for run in entry.get("runs", []):
-                table[kind][run["world"]] = run
+                yield kind, run
+
+
+def merge(paths):
+    """{robot kind: {world: run}}: the last file holding a world has its say."""
+    table = collections.defaultdict(dict)
+    for kind, run in recorded_runs(paths):
+        table[kind][run["world"]] = run
     return table
 
 
@@ -78,11 +84,8 @@ def summary(runs):
 def pool(paths):
     """{robot kind: every run of it in the files, in file order}."""
     table = collections.defaultdict(list)
-    for path in paths:
-        with open(path) as f:
-            results = json.load(f).get("results", {})
-        for kind, entry in results.items():
-            table[kind].extend(entry.get("runs", []))
+    for kind, run in recorded_runs(paths):
+        table[kind].append(run)
     return table
 
 

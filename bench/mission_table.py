@@ -28,6 +28,7 @@ from scipy.stats import binomtest
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from bench_mission import summarise  # noqa: E402
+from mission_looks import recorded_runs  # noqa: E402
 
 
 def failure_class(run):
@@ -42,16 +43,6 @@ def failure_class(run):
         return f"gave up: {re.sub(r'[-0-9.]+', 'N', reason)[:60]}"
     # Any other phase at the end: the sim-time limit stopped the run there.
     return f"out of time in {run['final_phase']}"
-
-
-def recorded_runs(paths):
-    """(robot kind, run) of every run in the files, in file order."""
-    for path in paths:
-        with open(path) as f:
-            results = json.load(f).get("results", {})
-        for kind, entry in results.items():
-            for run in entry.get("runs", []):
-                yield kind, run
 
 
 def merge(paths):

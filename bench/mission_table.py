@@ -82,8 +82,8 @@ def pool(paths):
 
 def pooled_summary(runs):
     """Success share over all runs with its 95 % Wilson interval; worlds failed more than once."""
-    successes = sum(1 for r in runs if r.get("success"))
-    interval = binomtest(successes, len(runs)).proportion_ci(0.95, method="wilson")
+    s = summarise(runs)
+    interval = binomtest(s["successes"], s["runs"]).proportion_ci(0.95, method="wilson")
     tried, failed = collections.Counter(), collections.defaultdict(list)
     for r in runs:
         tried[r["world"]] += 1
@@ -92,11 +92,21 @@ def pooled_summary(runs):
     repeated = {w: {"failed": len(c), "runs": tried[w], "classes": c}
                 for w, c in sorted(failed.items(), key=lambda wc: (-len(wc[1]), seed(wc[0])))
                 if len(c) > 1}
-    return {"runs": len(runs), "successes": successes,
-            "success_share": round(successes / len(runs), 3),
+    return {"runs": s["runs"], "successes": s["successes"], "success_share": s["success_rate"],
             "interval_95": [round(interval.low, 3), round(interval.high, 3)],
             "worlds_failed_once": sum(1 for c in failed.values() if len(c) == 1),
             "worlds_failed_more_than_once": repeated}
+
+
+def print_merged(table):
+    for kind, row in table.items():
+        median = row["median_sim_time_to_exit_s"]
+        print(f"{kind}: {row['successes']} of {row['worlds']} "
+              f"({100 * row['successes'] / row['worlds']:.0f} %), median time to the exit "
+              f"{'-' if median is None else f'{median:.0f} s'}")
+        for name, failures in row["failures"].items():
+            print(f"  {failures['count']:3d} {name}: random:"
+                  + ", ".join(str(s) for s in failures["worlds"]))
 
 
 def print_pooled(table):
@@ -119,23 +129,13 @@ def main(argv=None):
     if args.pool:
         table = {kind: pooled_summary(runs) for kind, runs in sorted(pool(args.files).items())}
         print_pooled(table)
-        if args.json:
-            with open(args.json, "w") as f:
-                json.dump({"files": args.files, "pooled": table}, f, indent=1)
-        return 0
-    table = {kind: summary([runs[w] for w in sorted(runs, key=seed)])
-             for kind, runs in sorted(merge(args.files).items())}
-    for kind, row in table.items():
-        median = row["median_sim_time_to_exit_s"]
-        print(f"{kind}: {row['successes']} of {row['worlds']} "
-              f"({100 * row['successes'] / row['worlds']:.0f} %), median time to the exit "
-              f"{'-' if median is None else f'{median:.0f} s'}")
-        for name, failures in row["failures"].items():
-            print(f"  {failures['count']:3d} {name}: random:"
-                  + ", ".join(str(s) for s in failures["worlds"]))
+    else:
+        table = {kind: summary([runs[w] for w in sorted(runs, key=seed)])
+                 for kind, runs in sorted(merge(args.files).items())}
+        print_merged(table)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"files": args.files, "table": table}, f, indent=1)
+            json.dump({"files": args.files, "pooled" if args.pool else "table": table}, f, indent=1)
     return 0
 
 

@@ -9,8 +9,9 @@ bench/results/*_failed_logs/<run>/. An exit is given up when tracking was lost
 ``stall_progress_m`` closer; the losses that counted are the last ``max_goal_losses`` of that
 phase before the verdict (the count restarts at one on progress). A loss is sudden with at least
 ``sudden_loss_min_tracked_points`` map points tracked at it (the forced losses of the stressed
-bench: 600-2300). Logs written after sudden losses stopped counting hold no such verdict with
-them. Reads nothing from ../shared; takes a second.
+bench: 600-2300). Logs of code where sudden losses did not count (e7654e3, left on the branch
+sudden-goal-losses) hold the skipped sudden ones in that window too: their rows overstate them.
+Reads nothing from ../shared; takes a second.
 
     /usr/bin/python3 bench/goal_loss_counts.py
 """

@@ -6,8 +6,8 @@ the losses that counted were sudden (the evidence for sudden losses not counting
 Each failed run of bench_mission.py keeps its conductor log under
 bench/results/*_failed_logs/<run>/. An exit is given up when tracking was lost
 ``max_goal_losses`` times in a row on the way to it (or passing through it) without coming
-``stall_progress_m`` closer; the losses that counted are the last ``max_goal_losses`` of that
-phase before the verdict (the count restarts at one on progress). A loss is sudden with at least
+``stall_progress_m`` closer; the losses that counted are the last of that phase before the
+verdict, as many as it names (the count restarts at one on progress). A loss is sudden with at least
 ``sudden_loss_min_tracked_points`` map points tracked at it (the forced losses of the stressed
 bench: 600-2300). Logs of code where sudden losses did not count (e7654e3, left on the branch
 sudden-goal-losses) hold the skipped sudden ones in that window too: their rows overstate them.
@@ -32,7 +32,7 @@ NEW_GOAL = ("exit found at", "next candidate", "at the exit: pass through")
 GIVEN_UP = re.compile(r"SLAM tracking lost (\d+) times (on the way to the exit|passing through)")
 
 
-def given_up_exits(log_path, counted):
+def given_up_exits(log_path):
     """(phase, tracked points of the losses that counted) of each exit given up in one log."""
     found, losses = [], {"go_to_exit": [], "pass_through": []}
     with open(log_path, errors="replace") as f:
@@ -40,7 +40,7 @@ def given_up_exits(log_path, counted):
             verdict = GIVEN_UP.search(line)
             if verdict:
                 phase = "go_to_exit" if "on the way" in verdict.group(2) else "pass_through"
-                found.append((phase, losses[phase][-counted:]))
+                found.append((phase, losses[phase][-int(verdict.group(1)):]))
             loss = LOSS.search(line)
             if loss:
                 losses[loss.group(1)].append(int(loss.group(2)))
@@ -59,7 +59,7 @@ def main():
                                               "conductor-*.log"))):
         setting = os.path.basename(os.path.dirname(os.path.dirname(path)))
         setting = re.sub(r"^mission_|_failed_logs$", "", setting)
-        for phase, tracked in given_up_exits(path, cfg.max_goal_losses):
+        for phase, tracked in given_up_exits(path):
             sudden = sum(n >= cfg.sudden_loss_min_tracked_points for n in tracked)
             table[(setting, phase, sudden)] += 1
     print(f"exits given up after {cfg.max_goal_losses} losses; sudden: at least "

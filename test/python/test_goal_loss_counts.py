@@ -27,5 +27,5 @@ def test_the_last_losses_of_the_phase_before_the_verdict_counted(tmp_path):
     ]
     log = tmp_path / "conductor-12.log"
     log.write_text("".join(PREFIX + line + "\n" for line in lines))
-    assert goal_loss_counts.given_up_exits(str(log), 3) == [
+    assert goal_loss_counts.given_up_exits(str(log)) == [
         ("go_to_exit", [30, 1200, 25]), ("pass_through", [26, 27])]
